@@ -1,0 +1,83 @@
+//! `actor bench`: simulator throughput on one core.
+
+use std::time::{Duration, Instant};
+
+use anyhow::{Context, Result};
+use clap::{Args, Subcommand};
+use sim_core::config::EnvConfig;
+use sim_core::env::Env;
+use sim_core::expert::Expert;
+use sim_core::scenario::Scenario;
+
+use crate::drive::load_town;
+
+#[derive(Debug, Subcommand)]
+pub enum BenchCommand {
+    /// Environment steps per second on one core (physics, traffic, collisions, reward).
+    Sim(SimArgs),
+}
+
+#[derive(Debug, Args)]
+pub struct SimArgs {
+    /// Moving traffic cars.
+    #[arg(long, default_value_t = 50)]
+    pub vehicles: usize,
+    /// Steps to time.
+    #[arg(long, default_value_t = 200_000)]
+    pub steps: u64,
+    /// Print one JSON object on the last line of stdout.
+    #[arg(long)]
+    pub json: bool,
+}
+
+pub fn run(cmd: &BenchCommand) -> Result<()> {
+    match cmd {
+        BenchCommand::Sim(args) => sim(args),
+    }
+}
+
+/// Drives random training episodes with the reference driver (so that episodes last) and times
+/// `Env::step` alone; resets and the driver's own thinking are timed apart.
+fn sim(args: &SimArgs) -> Result<()> {
+    let mut cfg = EnvConfig::default();
+    cfg.traffic.vehicles = args.vehicles;
+    let mut env = Env::new(load_town(None)?, cfg).context("creating the environment")?;
+    let expert = Expert::default();
+    let (mut step_time, mut reset_time) = (Duration::ZERO, Duration::ZERO);
+    let (mut steps, mut episodes) = (0u64, 0u64);
+    let wall = Instant::now();
+    let mut last_report = Instant::now();
+    while steps < args.steps {
+        let action = expert.act(&env);
+        let t = Instant::now();
+        let r = env.step(action)?;
+        step_time += t.elapsed();
+        steps += 1;
+        if r.terminated || r.truncated {
+            episodes += 1;
+            let t = Instant::now();
+            env.reset(episodes, Scenario::Random)?;
+            reset_time += t.elapsed();
+        }
+        if last_report.elapsed() > Duration::from_secs(2) {
+            tracing::info!(steps, "benchmarking");
+            last_report = Instant::now();
+        }
+    }
+    let steps_per_sec = steps as f64 / step_time.as_secs_f64();
+    let with_resets = steps as f64 / (step_time + reset_time).as_secs_f64();
+    if args.json {
+        println!("{}", serde_json::json!({ "steps_per_sec": steps_per_sec.round(), "vehicles": args.vehicles, "camera": null }));
+    } else {
+        println!(
+            "vehicles {}: {:.0} steps/s in Env::step, {:.0} steps/s with resets ({} episodes), wall {:.1} s",
+            args.vehicles,
+            steps_per_sec,
+            with_resets,
+            episodes,
+            wall.elapsed().as_secs_f64()
+        );
+    }
+    tracing::info!(steps_per_sec, with_resets, episodes, "done");
+    Ok(())
+}

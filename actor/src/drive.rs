@@ -1,0 +1,137 @@
+//! `actor drive`: runs a policy over evaluation routes and reports per-route outcomes.
+
+use std::sync::Arc;
+
+use anyhow::{Context, Result};
+use clap::Args;
+use serde::Serialize;
+use sim_core::config::EnvConfig;
+use sim_core::env::Env;
+use sim_core::scenario::{EvalRoute, Scenario};
+use sim_core::town::Town;
+
+use crate::policy::Policy;
+
+#[derive(Debug, Args)]
+pub struct DriveArgs {
+    /// `expert` (the model-based reference driver) or `random`.
+    #[arg(long, default_value = "expert")]
+    pub policy: String,
+    /// A route name (straight_highway, straight_urban, straight_under_bridge, slight_curve,
+    /// sharp_curve, right_turn, left_turn) or `all`.
+    #[arg(long, default_value = "all")]
+    pub route: String,
+    /// Runs per route; run k uses seed S + k (different traffic).
+    #[arg(long, default_value_t = 5)]
+    pub runs: u32,
+    /// Base seed.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Moving traffic cars (default: the configuration's, 20).
+    #[arg(long)]
+    pub traffic: Option<usize>,
+    /// A map file in the documented format (default: the embedded town).
+    #[arg(long)]
+    pub map: Option<std::path::PathBuf>,
+    /// Print one JSON object on the last line of stdout instead of a table.
+    #[arg(long)]
+    pub json: bool,
+}
+
+#[derive(Debug, Serialize)]
+struct RouteReport {
+    route: &'static str,
+    runs: u32,
+    completed: u32,
+    collisions: u32,
+    mean_return: f64,
+    mean_steps: f64,
+    /// Count per collision kind, for the table.
+    #[serde(skip)]
+    kinds: Vec<&'static str>,
+}
+
+/// Loads the town: the embedded default or a map file.
+pub fn load_town(map: Option<&std::path::Path>) -> Result<Arc<Town>> {
+    match map {
+        None => Ok(Town::default_town()),
+        Some(path) => {
+            let text = std::fs::read_to_string(path).with_context(|| format!("reading map file {}", path.display()))?;
+            Town::from_map_text(&text).with_context(|| format!("loading map file {}", path.display()))
+        }
+    }
+}
+
+pub fn run(args: &DriveArgs) -> Result<()> {
+    let routes: Vec<EvalRoute> = if args.route == "all" {
+        EvalRoute::ALL.to_vec()
+    } else {
+        vec![EvalRoute::from_name(&args.route).with_context(|| {
+            format!("unknown route `{}`: expected `all` or one of {}", args.route, EvalRoute::ALL.map(EvalRoute::name).join(", "))
+        })?]
+    };
+    if args.runs == 0 {
+        anyhow::bail!("--runs must be at least 1");
+    }
+    let town = load_town(args.map.as_deref())?;
+    let mut cfg = EnvConfig::default();
+    if let Some(n) = args.traffic {
+        cfg.traffic.vehicles = n;
+    }
+    let mut env = Env::new(town, cfg).context("creating the environment")?;
+    let mut reports = Vec::new();
+    for route in routes {
+        let mut rep = RouteReport {
+            route: route.name(),
+            runs: args.runs,
+            completed: 0,
+            collisions: 0,
+            mean_return: 0.0,
+            mean_steps: 0.0,
+            kinds: Vec::new(),
+        };
+        for k in 0..args.runs {
+            let seed = args.seed + u64::from(k);
+            let mut policy = Policy::from_name(&args.policy, seed)?;
+            env.reset(seed, Scenario::Eval(route)).with_context(|| format!("starting route {}", route.name()))?;
+            let mut ret = 0.0f64;
+            loop {
+                let r = env.step(policy.act(&env))?;
+                ret += f64::from(r.reward);
+                if r.terminated || r.truncated {
+                    if r.info.arrived {
+                        rep.completed += 1;
+                    }
+                    if let Some(kind) = r.info.collision {
+                        rep.collisions += 1;
+                        rep.kinds.push(kind.name());
+                    }
+                    tracing::debug!(route = route.name(), seed, steps = r.info.steps, ret, arrived = r.info.arrived, collision = ?r.info.collision, progress = r.info.progress, "run finished");
+                    break;
+                }
+            }
+            rep.mean_return += ret / f64::from(args.runs);
+            rep.mean_steps += f64::from(env.steps()) / f64::from(args.runs);
+        }
+        reports.push(rep);
+    }
+    if args.json {
+        println!("{}", serde_json::json!({ "routes": reports }));
+    } else {
+        println!("policy: {}   runs per route: {}   traffic: {} cars", args.policy, args.runs, env.cfg.traffic.vehicles);
+        println!("{:<22} {:>9} {:>10} {:>12} {:>10}  collision kinds", "route", "completed", "collisions", "mean return", "mean steps");
+        for r in &reports {
+            println!(
+                "{:<22} {:>5}/{:<3} {:>10} {:>12.1} {:>10.1}  {}",
+                r.route,
+                r.completed,
+                r.runs,
+                r.collisions,
+                r.mean_return,
+                r.mean_steps,
+                r.kinds.join(",")
+            );
+        }
+    }
+    Ok(())
+}

@@ -1,0 +1,171 @@
+//! Environment configuration: every constant of the episode, reward, traffic and vehicle, with
+//! the paper's values as defaults. Validated once, with errors that name the field.
+
+use serde::{Deserialize, Serialize};
+
+use crate::reward::RewardConfig;
+use crate::traffic::IdmParams;
+use crate::vehicle::VehicleParams;
+
+/// Which agent the environment serves.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Variant {
+    /// The paper's method: d in the observation, r_w in the reward.
+    #[default]
+    Hybrid,
+    /// The paper's baseline: camera and speed only; no d, no r_w.
+    EndToEnd,
+}
+
+/// Everything an environment needs besides the map.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct EnvConfig {
+    pub variant: Variant,
+    /// Simulation step, seconds (default 0.1, the paper's 10 Hz).
+    pub dt: f32,
+    /// Spacing of the planner's waypoints along the route, metres (default 8, the paper's).
+    pub waypoint_spacing: f32,
+    /// Shortest random training route, metres (default 50).
+    pub route_length_min: f32,
+    /// Longest random training route, metres (default 150).
+    pub route_length_max: f32,
+    /// Steps before a training episode is truncated (default 200).
+    pub time_limit: u32,
+    /// Steps before an evaluation route is truncated (default 300: waiting at junctions takes time).
+    pub eval_time_limit: u32,
+    pub reward: RewardConfig,
+    pub traffic: TrafficConfig,
+    pub vehicle: VehicleParams,
+}
+
+impl Default for EnvConfig {
+    fn default() -> Self {
+        Self {
+            variant: Variant::Hybrid,
+            dt: 0.1,
+            waypoint_spacing: 8.0,
+            route_length_min: 50.0,
+            route_length_max: 150.0,
+            time_limit: 200,
+            eval_time_limit: 300,
+            reward: RewardConfig::default(),
+            traffic: TrafficConfig::default(),
+            vehicle: VehicleParams::default(),
+        }
+    }
+}
+
+/// Other road users.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct TrafficConfig {
+    /// Moving traffic cars (0 = empty roads; 20 = default; 60+ = dense on the default town).
+    pub vehicles: usize,
+    /// Cars parked on the roads' parking shoulders (default 12).
+    pub parked_cars: usize,
+    /// The paper code's option: a parked car on the route, this many metres ahead of the start,
+    /// standing in the lane (default: none).
+    pub parked_car_ahead: Option<f32>,
+    /// Traffic keeps at least this far from the ego vehicle when placed, metres (default 25).
+    pub spawn_clearance: f32,
+    pub idm: IdmParams,
+}
+
+impl Default for TrafficConfig {
+    fn default() -> Self {
+        Self { vehicles: 20, parked_cars: 12, parked_car_ahead: None, spawn_clearance: 25.0, idm: IdmParams::default() }
+    }
+}
+
+/// A configuration value that is out of range.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("config field `{field}`: {message}")]
+pub struct ConfigError {
+    /// Dotted path of the field, e.g. `reward.d0`.
+    pub field: String,
+    pub message: String,
+}
+
+fn check(ok: bool, field: &str, message: impl FnOnce() -> String) -> Result<(), ConfigError> {
+    if ok { Ok(()) } else { Err(ConfigError { field: field.to_owned(), message: message() }) }
+}
+
+fn positive(x: f32, field: &str) -> Result<(), ConfigError> {
+    check(x.is_finite() && x > 0.0, field, || format!("{x} must be a finite number > 0"))
+}
+
+impl EnvConfig {
+    /// Checks every field; the error names the first one out of range.
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        positive(self.dt, "dt")?;
+        check(self.dt <= 1.0, "dt", || format!("{} s is too coarse; use at most 1.0", self.dt))?;
+        positive(self.waypoint_spacing, "waypoint_spacing")?;
+        positive(self.route_length_min, "route_length_min")?;
+        check(self.route_length_max >= self.route_length_min, "route_length_max", || {
+            format!("{} must be >= route_length_min ({})", self.route_length_max, self.route_length_min)
+        })?;
+        check(self.time_limit > 0, "time_limit", || "must be at least 1 step".into())?;
+        check(self.eval_time_limit > 0, "eval_time_limit", || "must be at least 1 step".into())?;
+        self.reward.validate()?;
+        let t = &self.traffic;
+        check(t.vehicles <= 500, "traffic.vehicles", || format!("{} is more than the supported 500", t.vehicles))?;
+        check(t.parked_cars <= 500, "traffic.parked_cars", || format!("{} is more than the supported 500", t.parked_cars))?;
+        if let Some(a) = t.parked_car_ahead {
+            check(a.is_finite() && a >= 6.0, "traffic.parked_car_ahead", || format!("{a} m must be at least 6 (a car length ahead)"))?;
+        }
+        check(t.spawn_clearance.is_finite() && t.spawn_clearance >= 0.0, "traffic.spawn_clearance", || {
+            format!("{} must be >= 0", t.spawn_clearance)
+        })?;
+        for (x, f) in [
+            (t.idm.accel, "traffic.idm.accel"),
+            (t.idm.comfort_decel, "traffic.idm.comfort_decel"),
+            (t.idm.max_decel, "traffic.idm.max_decel"),
+            (t.idm.min_gap, "traffic.idm.min_gap"),
+            (t.idm.headway, "traffic.idm.headway"),
+        ] {
+            positive(x, f)?;
+        }
+        let v = &self.vehicle;
+        for (x, f) in [
+            (v.length, "vehicle.length"),
+            (v.width, "vehicle.width"),
+            (v.wheelbase, "vehicle.wheelbase"),
+            (v.max_accel, "vehicle.max_accel"),
+            (v.max_brake, "vehicle.max_brake"),
+            (v.max_speed, "vehicle.max_speed"),
+            (v.max_steer, "vehicle.max_steer"),
+            (v.steer_halving_speed, "vehicle.steer_halving_speed"),
+            (v.steer_rate, "vehicle.steer_rate"),
+        ] {
+            positive(x, f)?;
+        }
+        check(v.coast_decel.is_finite() && v.coast_decel >= 0.0, "vehicle.coast_decel", || format!("{} must be >= 0", v.coast_decel))?;
+        check(v.wheelbase < v.length, "vehicle.wheelbase", || {
+            format!("{} must be shorter than vehicle.length ({})", v.wheelbase, v.length)
+        })?;
+        check(v.max_steer < 1.5, "vehicle.max_steer", || format!("{} rad must be below 1.5 (~86°)", v.max_steer))?;
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn defaults_are_valid_and_errors_name_fields() {
+        EnvConfig::default().validate().unwrap();
+        let mut c = EnvConfig::default();
+        c.reward.d0 = -1.0;
+        assert_eq!(c.validate().unwrap_err().field, "reward.d0");
+        let mut c = EnvConfig::default();
+        c.route_length_max = 10.0;
+        let e = c.validate().unwrap_err();
+        assert_eq!(e.to_string(), "config field `route_length_max`: 10 must be >= route_length_min (50)");
+        let mut c = EnvConfig::default();
+        c.vehicle.wheelbase = 9.0;
+        assert_eq!(c.validate().unwrap_err().field, "vehicle.wheelbase");
+    }
+}

@@ -1,0 +1,420 @@
+//! An episode of driving: `reset(seed, scenario)` and `step(action)`, returning the observation,
+//! the paper's reward, termination (collision, arrival), truncation (time limit) and diagnostics.
+
+use std::sync::Arc;
+
+use rand::{RngExt, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use serde::Serialize;
+
+use crate::collision::{CollisionKind, Obb, leaves_drivable_area};
+use crate::config::{ConfigError, EnvConfig, Variant};
+use crate::map::{LaneId, LaneKind};
+use crate::math::{Vec2, left_normal};
+use crate::reward::{Outcome, RewardTerms};
+use crate::route::{Route, RouteTracker, Tracking};
+use crate::scenario::{EvalRoute, Scenario, eval_route, random_route};
+use crate::town::Town;
+use crate::traffic::{EgoRequest, EgoView, RELEASE_DISTANCE, Traffic};
+use crate::vehicle::{Action, VehicleState};
+
+/// What the agent observes.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Observation {
+    /// Ego speed, m/s.
+    pub speed: f32,
+    /// Distance to the closest route waypoint, metres (hybrid variant only).
+    pub d: Option<f32>,
+}
+
+/// Diagnostics of a step.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct StepInfo {
+    /// Distance to the closest waypoint ahead, metres.
+    pub d: f32,
+    /// Straight-line distance to the destination, metres.
+    pub l: f32,
+    /// m/s.
+    pub speed: f32,
+    /// What the ego hit this step, if anything.
+    pub collision: Option<CollisionKind>,
+    /// Fraction of the route's length driven, 0 to 1.
+    pub progress: f32,
+    pub arrived: bool,
+    pub reward_terms: RewardTerms,
+    /// Steps since reset.
+    pub steps: u32,
+}
+
+/// The result of one step.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct StepResult {
+    pub observation: Observation,
+    pub reward: f32,
+    /// The episode ended in a terminal state (collision or arrival): do not bootstrap.
+    pub terminated: bool,
+    /// The episode hit its time limit: not a terminal state (bootstrap through it).
+    pub truncated: bool,
+    pub info: StepInfo,
+}
+
+/// An environment could not start an episode.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum EnvError {
+    #[error(transparent)]
+    Config(#[from] ConfigError),
+    #[error("scenario `{0}` needs the default town's roads, which this map lacks")]
+    ScenarioNotOnMap(&'static str),
+    #[error("no random route of {min}–{max} m could be found on this map")]
+    NoRandomRoute { min: f32, max: f32 },
+    #[error("step called on a finished episode: call reset first")]
+    EpisodeOver,
+}
+
+/// One driving environment. Plain data: cloneable, `Send`, no threads or I/O.
+#[derive(Debug, Clone)]
+pub struct Env {
+    pub town: Arc<Town>,
+    pub cfg: EnvConfig,
+    pub ego: VehicleState,
+    pub traffic: Traffic,
+    /// Cars parked on shoulders.
+    pub parked: Vec<Obb>,
+    pub route: Route,
+    pub tracking: Tracking,
+    rng: ChaCha8Rng,
+    tracker: RouteTracker,
+    steps: u32,
+    time_limit: u32,
+    l_prev: f32,
+    /// Steps since the environment was created (orders junction requests).
+    clock: u64,
+    ego_hold: Option<LaneId>,
+    ego_request: Option<EgoRequest>,
+    done: bool,
+    last_info: StepInfo,
+}
+
+impl Env {
+    /// An environment on `town` with `cfg` (validated), reset to a random episode with seed 0.
+    pub fn new(town: Arc<Town>, cfg: EnvConfig) -> Result<Self, EnvError> {
+        cfg.validate()?;
+        let traffic = Traffic::empty(&town, cfg.traffic.idm, cfg.vehicle);
+        let dummy = crate::route::Route {
+            path: crate::polyline::Polyline::new([Vec2::ZERO, Vec2::X]).expect("two points"),
+            waypoints: vec![Vec2::ZERO],
+            lanes: vec![(0, 0.0)],
+            cost: 0.0,
+        };
+        let mut env = Self {
+            town,
+            cfg,
+            ego: VehicleState::at_rest(Vec2::ZERO, 0.0),
+            traffic,
+            parked: Vec::new(),
+            route: dummy,
+            tracking: Tracking { d: 0.0, s: 0.0, lateral: 0.0 },
+            rng: ChaCha8Rng::seed_from_u64(0),
+            tracker: RouteTracker::default(),
+            steps: 0,
+            time_limit: 1,
+            l_prev: 0.0,
+            clock: 0,
+            ego_hold: None,
+            ego_request: None,
+            done: true,
+            last_info: StepInfo {
+                d: 0.0,
+                l: 0.0,
+                speed: 0.0,
+                collision: None,
+                progress: 0.0,
+                arrived: false,
+                reward_terms: RewardTerms::default(),
+                steps: 0,
+            },
+        };
+        env.reset(0, Scenario::Random)?;
+        Ok(env)
+    }
+
+    /// Starts an episode. Everything random in it (route, traffic, parking) comes from `seed`.
+    pub fn reset(&mut self, seed: u64, scenario: Scenario) -> Result<Observation, EnvError> {
+        self.rng = ChaCha8Rng::seed_from_u64(seed);
+        let cfg = &self.cfg;
+        let (route, time_limit) = match scenario {
+            Scenario::Random => (
+                random_route(&self.town, cfg.route_length_min, cfg.route_length_max, cfg.waypoint_spacing, &mut self.rng)
+                    .ok_or(EnvError::NoRandomRoute { min: cfg.route_length_min, max: cfg.route_length_max })?,
+                cfg.time_limit,
+            ),
+            Scenario::Eval(r) => {
+                (eval_route(&self.town, r, cfg.waypoint_spacing).ok_or(EnvError::ScenarioNotOnMap(r.name()))?, cfg.eval_time_limit)
+            }
+        };
+        let start = route.path.start();
+        let heading = route.path.heading_at(0.0);
+        self.ego = VehicleState::at_rest(start, heading);
+        self.route = route;
+        self.tracker = RouteTracker::default();
+        self.tracking = self.tracker.update(&self.route, start);
+        self.steps = 0;
+        self.time_limit = time_limit;
+        self.l_prev = start.distance(self.route.destination());
+        self.ego_hold = None;
+        self.ego_request = None;
+        self.done = false;
+
+        self.traffic = Traffic::empty(&self.town, self.cfg.traffic.idm, self.cfg.vehicle);
+        if let Some(ahead) = self.cfg.traffic.parked_car_ahead {
+            let s = ahead.min(self.route.length() - 1.0);
+            let lane = self.route.lane_at(s);
+            let p = self.route.path.point_at(s);
+            let lane_s = self.town.map.lanes[lane].path.project(p).s;
+            self.traffic.add_parked_on_lane(&self.town, lane, lane_s);
+        }
+        // Keep the start and the first stretch of the route clear of spawned traffic.
+        let avoid = [start, self.route.path.point_at(15.0)];
+        self.traffic.spawn(&self.town, self.cfg.traffic.vehicles, &avoid, self.cfg.traffic.spawn_clearance, &mut self.rng);
+        self.parked = self.place_parked_cars(self.cfg.traffic.parked_cars, start);
+        self.last_info = self.info_now(None, false, RewardTerms::default());
+        Ok(self.observation())
+    }
+
+    /// Advances one step under `action`.
+    pub fn step(&mut self, action: Action) -> Result<StepResult, EnvError> {
+        if self.done {
+            return Err(EnvError::EpisodeOver);
+        }
+        let dt = self.cfg.dt;
+        self.ego.step(&self.cfg.vehicle, action, dt);
+        self.tracking = self.tracker.update(&self.route, self.ego.pos);
+        self.update_ego_junction();
+        let granted = self.traffic.manage_junctions(&self.town, self.clock, self.ego_hold, self.ego_request);
+        if granted {
+            self.ego_hold = self.ego_request.take().map(|r| r.connector);
+        }
+        let body = self.ego_body();
+        let view = EgoView { body, speed: self.ego.speed, hold: self.ego_hold };
+        self.traffic.step(&self.town, &view, dt, &mut self.rng);
+        self.clock += 1;
+        self.steps += 1;
+
+        let collision = self.collision(&body);
+        let l = self.ego.pos.distance(self.route.destination());
+        let arrived = collision.is_none() && self.cfg.reward.arrived(l);
+        let outcome = match (collision, arrived) {
+            (Some(_), _) => Outcome::Collision,
+            (None, true) => Outcome::Arrived,
+            (None, false) => Outcome::Driving,
+        };
+        let terms = self.cfg.reward.reward(self.cfg.variant, outcome, self.ego.speed, l, self.l_prev, self.tracking.d);
+        self.l_prev = l;
+        let terminated = outcome != Outcome::Driving;
+        let truncated = !terminated && self.steps >= self.time_limit;
+        self.done = terminated || truncated;
+        self.last_info = self.info_now(collision, arrived, terms);
+        Ok(StepResult { observation: self.observation(), reward: terms.total, terminated, truncated, info: self.last_info.clone() })
+    }
+
+    /// The current observation.
+    #[must_use]
+    pub fn observation(&self) -> Observation {
+        Observation { speed: self.ego.speed, d: (self.cfg.variant == Variant::Hybrid).then_some(self.tracking.d) }
+    }
+
+    /// Diagnostics of the last step (or of the reset).
+    #[must_use]
+    pub fn info(&self) -> &StepInfo {
+        &self.last_info
+    }
+
+    /// Whether the episode has ended.
+    #[must_use]
+    pub fn is_done(&self) -> bool {
+        self.done
+    }
+
+    /// Steps taken since reset.
+    #[must_use]
+    pub fn steps(&self) -> u32 {
+        self.steps
+    }
+
+    /// The ego vehicle's body.
+    #[must_use]
+    pub fn ego_body(&self) -> Obb {
+        Obb::new(self.ego.pos, self.cfg.vehicle.half_extents(), self.ego.heading)
+    }
+
+    /// The junction connector the ego vehicle holds (may cross), if any.
+    #[must_use]
+    pub fn ego_hold(&self) -> Option<LaneId> {
+        self.ego_hold
+    }
+
+    /// The next junction connector on the route ahead of the ego and the route distance to its
+    /// entry, if one lies ahead.
+    #[must_use]
+    pub fn next_connector(&self) -> Option<(LaneId, f32)> {
+        let s = self.tracking.s;
+        self.route
+            .lanes
+            .iter()
+            .find(|&&(lane, start)| start + 0.5 > s && self.town.is_connector(lane))
+            .map(|&(lane, start)| (lane, start - s))
+    }
+
+    /// A hash of the whole dynamic state (ego, traffic, route progress): equal hashes after the
+    /// same seed and actions show bit-identical trajectories.
+    #[must_use]
+    pub fn state_hash(&self) -> u64 {
+        let mut h = Fnv::default();
+        let e = &self.ego;
+        for x in [e.pos.x, e.pos.y, e.heading, e.speed, e.steer, self.tracking.d, self.tracking.s] {
+            h.write(x.to_bits() as u64);
+        }
+        for c in &self.traffic.cars {
+            for x in [c.pos.x, c.pos.y, c.heading, c.speed, c.s] {
+                h.write(x.to_bits() as u64);
+            }
+            h.write(c.lane as u64);
+            h.write(c.active as u64);
+        }
+        for p in &self.parked {
+            h.write(p.centre.x.to_bits() as u64);
+        }
+        h.0
+    }
+
+    fn info_now(&self, collision: Option<CollisionKind>, arrived: bool, reward_terms: RewardTerms) -> StepInfo {
+        StepInfo {
+            d: self.tracking.d,
+            l: self.ego.pos.distance(self.route.destination()),
+            speed: self.ego.speed,
+            collision,
+            progress: (self.tracking.s / self.route.length()).clamp(0.0, 1.0),
+            arrived,
+            reward_terms,
+            steps: self.steps,
+        }
+    }
+
+    /// Keeps the ego's junction reservation in step with where it is on its route: hold the
+    /// connector it is on, release it once clear, and request the next one when near it.
+    fn update_ego_junction(&mut self) {
+        let s = self.tracking.s;
+        let on_route = self.tracking.lateral.abs() < 3.0;
+        let current = self.route.lane_at(s);
+        if let Some(h) = self.ego_hold {
+            let exit_start = self.route.lanes.iter().skip_while(|&&(l, _)| l != h).nth(1).map_or(f32::INFINITY, |&(_, st)| st);
+            if s > exit_start + RELEASE_DISTANCE || !on_route && current != h {
+                self.ego_hold = None;
+            }
+        }
+        if on_route && self.town.is_connector(current) && self.ego_hold.is_none() {
+            // Entered without a grant: it is there all the same, and traffic must know.
+            self.ego_hold = Some(current);
+            self.ego_request = None;
+        }
+        match self.next_connector() {
+            Some((c, dist))
+                if on_route
+                    && dist - self.cfg.vehicle.length / 2.0 < self.cfg.traffic.idm.request_distance(self.ego.speed)
+                    && self.ego_hold != Some(c) =>
+            {
+                if self.ego_request.is_none_or(|r| r.connector != c) {
+                    self.ego_request = Some(EgoRequest { connector: c, since: self.clock });
+                }
+            }
+            _ => self.ego_request = None,
+        }
+    }
+
+    fn collision(&self, body: &Obb) -> Option<CollisionKind> {
+        let (lo, hi) = body.aabb();
+        let overlaps = |b: &Obb| {
+            let (l2, h2) = b.aabb();
+            lo.x <= h2.x && l2.x <= hi.x && lo.y <= h2.y && l2.y <= hi.y && body.intersects(b)
+        };
+        for (b, parked) in self.traffic.bodies() {
+            if overlaps(&b) {
+                return Some(if parked { CollisionKind::ParkedCar } else { CollisionKind::Vehicle });
+            }
+        }
+        if self.parked.iter().any(overlaps) {
+            return Some(CollisionKind::ParkedCar);
+        }
+        if let Some(kind) = self.town.statics.hit(body) {
+            return Some(kind);
+        }
+        leaves_drivable_area(&self.town.map, body).then_some(CollisionKind::OffRoad)
+    }
+
+    /// Parks up to `n` cars in the shoulders of roads that have them, 8 m apart, clear of the
+    /// junctions and of the ego's start.
+    fn place_parked_cars(&mut self, n: usize, ego_start: Vec2) -> Vec<Obb> {
+        let map = &self.town.map;
+        let roads: Vec<usize> = (0..map.roads.len()).filter(|&r| map.roads[r].shoulder >= 2.0).collect();
+        let mut out: Vec<Obb> = Vec::new();
+        if roads.is_empty() {
+            return out;
+        }
+        let half = self.cfg.vehicle.half_extents();
+        for _ in 0..n {
+            for _try in 0..20 {
+                let road = &map.roads[roads[self.rng.random_range(0..roads.len())]];
+                let (s0, s1) = (road.cut_start + 8.0, road.centre.length() - road.cut_end - 8.0);
+                if s1 <= s0 {
+                    continue;
+                }
+                let st = self.rng.random_range(s0..s1);
+                let right = self.rng.random_bool(0.5);
+                let tangent = road.centre.tangent_at(st);
+                let offset = if right { -(road.right_width() - road.shoulder / 2.0) } else { road.left_width() - road.shoulder / 2.0 };
+                let centre = road.centre.point_at(st) + left_normal(tangent) * offset;
+                let heading = crate::math::heading_of(if right { tangent } else { -tangent });
+                let car = Obb::new(centre, half, heading);
+                if centre.distance(ego_start) < 10.0
+                    || out.iter().any(|o| o.centre.distance(centre) < 8.0)
+                    || self.town.statics.hit(&car).is_some()
+                {
+                    continue;
+                }
+                out.push(car);
+                break;
+            }
+        }
+        out
+    }
+
+    /// Whether the lane is a road lane (not a junction connector).
+    #[must_use]
+    pub fn is_road_lane(&self, lane: LaneId) -> bool {
+        matches!(self.town.map.lanes[lane].kind, LaneKind::Road { .. })
+    }
+}
+
+/// Starts an episode of an evaluation route (convenience for drivers and tests).
+pub fn reset_eval(env: &mut Env, seed: u64, route: EvalRoute) -> Result<Observation, EnvError> {
+    env.reset(seed, Scenario::Eval(route))
+}
+
+/// 64-bit FNV-1a over words.
+#[derive(Debug)]
+struct Fnv(u64);
+
+impl Default for Fnv {
+    fn default() -> Self {
+        Self(0xcbf2_9ce4_8422_2325)
+    }
+}
+
+impl Fnv {
+    fn write(&mut self, x: u64) {
+        for b in x.to_le_bytes() {
+            self.0 ^= u64::from(b);
+            self.0 = self.0.wrapping_mul(0x0100_0000_01b3);
+        }
+    }
+}

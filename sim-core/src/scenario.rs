@@ -1,0 +1,164 @@
+//! Episodes' starting conditions: random training routes, and the seven evaluation routes of the
+//! paper's Table I as named scenarios on the default town.
+
+use rand::RngExt;
+use rand_chacha::ChaCha8Rng;
+
+use crate::map::{LaneId, LaneKind, LaneMatch, Map};
+use crate::route::{Route, plan};
+use crate::town::Town;
+
+/// What an episode drives.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Scenario {
+    /// A random origin–destination pair whose route length is within the configured range.
+    Random,
+    /// One of the paper's seven evaluation routes.
+    Eval(EvalRoute),
+}
+
+/// The paper's seven route types (Table I).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum EvalRoute {
+    StraightHighway,
+    StraightUrban,
+    StraightUnderBridge,
+    SlightCurve,
+    SharpCurve,
+    RightTurn,
+    LeftTurn,
+}
+
+impl EvalRoute {
+    /// All seven, in the paper's order.
+    pub const ALL: [EvalRoute; 7] = [
+        EvalRoute::StraightHighway,
+        EvalRoute::StraightUrban,
+        EvalRoute::StraightUnderBridge,
+        EvalRoute::SlightCurve,
+        EvalRoute::SharpCurve,
+        EvalRoute::RightTurn,
+        EvalRoute::LeftTurn,
+    ];
+
+    /// The route's name on the command line.
+    #[must_use]
+    pub fn name(self) -> &'static str {
+        match self {
+            EvalRoute::StraightHighway => "straight_highway",
+            EvalRoute::StraightUrban => "straight_urban",
+            EvalRoute::StraightUnderBridge => "straight_under_bridge",
+            EvalRoute::SlightCurve => "slight_curve",
+            EvalRoute::SharpCurve => "sharp_curve",
+            EvalRoute::RightTurn => "right_turn",
+            EvalRoute::LeftTurn => "left_turn",
+        }
+    }
+
+    /// The route with this name.
+    #[must_use]
+    pub fn from_name(name: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|r| r.name() == name)
+    }
+
+    /// The paper's Table I scores (Hybrid-DQN, human), for reference columns.
+    #[must_use]
+    pub fn paper_scores(self) -> (f32, f32) {
+        match self {
+            EvalRoute::StraightHighway => (21.1, 43.4),
+            EvalRoute::StraightUrban => (27.6, 38.1),
+            EvalRoute::StraightUnderBridge => (31.6, 45.2),
+            EvalRoute::SlightCurve => (30.4, 49.5),
+            EvalRoute::SharpCurve => (-74.4, -8.9),
+            EvalRoute::RightTurn => (-136.9, -12.1),
+            EvalRoute::LeftTurn => (-385.9, -25.5),
+        }
+    }
+
+    /// Origin and destination on the default town: (road, forward?, lane index, station along the
+    /// road's centre line from its start node).
+    fn ends(self) -> [(&'static str, bool, usize, f32); 2] {
+        match self {
+            // Eastbound right lane of the highway, 140 m of straight.
+            EvalRoute::StraightHighway => [("highway", true, 1, 50.0), ("highway", true, 1, 190.0)],
+            // Northbound through the 4-way junction E.
+            EvalRoute::StraightUrban => [("b_e", true, 0, 40.0), ("e_h", true, 0, 60.0)],
+            // Northbound under the overpass at y = 290.
+            EvalRoute::StraightUnderBridge => [("under_bridge", true, 0, 15.0), ("under_bridge", true, 0, 145.0)],
+            // Highway into its 25° bend of radius 250 m.
+            EvalRoute::SlightCurve => [("highway", true, 1, 320.0), ("highway_curve", true, 1, 135.0)],
+            // The 90° bend of radius 18 m.
+            EvalRoute::SharpCurve => [("sharp_bend", true, 0, 12.0), ("sharp_bend", true, 0, 105.0)],
+            // Eastbound on d_e, right at E, south on b_e (its backward lane).
+            EvalRoute::RightTurn => [("d_e", true, 0, 30.0), ("b_e", false, 0, 40.0)],
+            // Eastbound on d_e, left at E, north on e_h.
+            EvalRoute::LeftTurn => [("d_e", true, 0, 30.0), ("e_h", true, 0, 60.0)],
+        }
+    }
+
+    /// The route's origin and destination as lane positions on `map`. `None` if the map lacks the
+    /// roads (not the default town).
+    #[must_use]
+    pub fn endpoints(self, map: &Map) -> Option<[LaneMatch; 2]> {
+        let [a, b] = self.ends();
+        Some([lane_position(map, a)?, lane_position(map, b)?])
+    }
+}
+
+fn lane_position(map: &Map, (road, forward, index, station): (&str, bool, usize, f32)) -> Option<LaneMatch> {
+    let r = &map.roads[map.road_by_name(road)?];
+    let lane = *if forward { r.forward.get(index)? } else { r.backward.get(index)? };
+    let p = r.centre.point_at(station);
+    let proj = map.lanes[lane].path.project(p);
+    Some(LaneMatch { lane, s: proj.s, distance: proj.distance })
+}
+
+/// Draws a random origin and destination whose planned route is `min..=max` metres long: a random
+/// origin on a road lane, a random drive along the lane graph for a random length, then A* back
+/// over the whole graph (which may find a shorter way). Tries up to 200 times.
+#[must_use]
+pub fn random_route(town: &Town, min: f32, max: f32, spacing: f32, rng: &mut ChaCha8Rng) -> Option<Route> {
+    let lanes = &town.map.lanes;
+    let road_lanes: Vec<LaneId> = (0..lanes.len()).filter(|&l| matches!(lanes[l].kind, LaneKind::Road { .. })).collect();
+    for _ in 0..200 {
+        let lane = road_lanes[rng.random_range(0..road_lanes.len())];
+        let len = lanes[lane].path.length();
+        if len < 10.0 {
+            continue;
+        }
+        let s = rng.random_range(2.0..len - 2.0);
+        let target = rng.random_range(min..=max);
+        // Random drive.
+        let (mut cur, mut cur_s, mut left) = (lane, s, target);
+        let goal = loop {
+            let remaining = lanes[cur].path.length() - cur_s;
+            let is_road = matches!(lanes[cur].kind, LaneKind::Road { .. });
+            if remaining >= left && is_road && cur_s + left > 2.0 {
+                break Some(cur_s + left);
+            }
+            let succ = &lanes[cur].successors;
+            if succ.is_empty() {
+                break None;
+            }
+            left = (left - remaining).max(1.0);
+            cur = succ[rng.random_range(0..succ.len())];
+            cur_s = 0.0;
+        };
+        let Some(goal_s) = goal else { continue };
+        let from = LaneMatch { lane, s, distance: 0.0 };
+        let to = LaneMatch { lane: cur, s: goal_s.min(lanes[cur].path.length() - 1.0), distance: 0.0 };
+        if let Some(route) = plan(&town.map, &town.graph, from, to, spacing)
+            && (min..=max).contains(&route.length())
+        {
+            return Some(route);
+        }
+    }
+    None
+}
+
+/// The planned route of an evaluation scenario.
+#[must_use]
+pub fn eval_route(town: &Town, route: EvalRoute, spacing: f32) -> Option<Route> {
+    let [from, to] = route.endpoints(&town.map)?;
+    plan(&town.map, &town.graph, from, to, spacing)
+}

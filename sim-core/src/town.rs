@@ -1,0 +1,82 @@
+//! A [`Town`]: a map with everything derived from it once and shared by every environment —
+//! the planning graph, the static-obstacle grid, per-lane speed caps and connector indices.
+
+use std::sync::Arc;
+
+use crate::collision::StaticGrid;
+use crate::map::{JunctionId, LaneId, LaneKind, Map, MapError};
+use crate::topology::LaneGraph;
+
+/// Lateral acceleration traffic accepts in curves, m/s².
+const COMFORT_LATERAL_ACCEL: f32 = 2.5;
+
+/// A map and its derived, read-only indices.
+#[derive(Debug)]
+pub struct Town {
+    pub map: Map,
+    pub graph: LaneGraph,
+    pub statics: StaticGrid,
+    /// Per lane: the highest comfortable speed over its sharpest bend, m/s.
+    pub curve_speed: Vec<f32>,
+    /// Per lane: for connectors, the junction and the connector's position in its list.
+    pub connector_slot: Vec<Option<(JunctionId, usize)>>,
+}
+
+impl Town {
+    /// Derives everything from `map`.
+    #[must_use]
+    pub fn new(map: Map) -> Arc<Self> {
+        let graph = LaneGraph::new(&map);
+        let statics = StaticGrid::new(&map);
+        let curve_speed = map.lanes.iter().map(|l| curve_speed(l.path.points())).collect();
+        let mut connector_slot = vec![None; map.lanes.len()];
+        for (j, junction) in map.junctions.iter().enumerate() {
+            for (k, &c) in junction.connectors.iter().enumerate() {
+                connector_slot[c] = Some((j, k));
+            }
+        }
+        Arc::new(Self { map, graph, statics, curve_speed, connector_slot })
+    }
+
+    /// The embedded default town.
+    #[must_use]
+    pub fn default_town() -> Arc<Self> {
+        Self::new(Map::default_town())
+    }
+
+    /// Loads a map from text.
+    pub fn from_map_text(text: &str) -> Result<Arc<Self>, MapError> {
+        Ok(Self::new(Map::from_text(text)?))
+    }
+
+    /// Whether two connectors (lane ids) may not be used at the same time.
+    #[must_use]
+    pub fn connectors_conflict(&self, a: LaneId, b: LaneId) -> bool {
+        match (self.connector_slot[a], self.connector_slot[b]) {
+            (Some((ja, ia)), Some((jb, ib))) if ja == jb => self.map.junctions[ja].conflicts[ia].contains(&ib),
+            _ => false,
+        }
+    }
+
+    /// Whether `lane` is a junction connector.
+    #[must_use]
+    pub fn is_connector(&self, lane: LaneId) -> bool {
+        matches!(self.map.lanes[lane].kind, LaneKind::Connector { .. })
+    }
+}
+
+/// Highest speed at which a polyline's sharpest bend (measured over ~3 m) stays within the comfort
+/// lateral acceleration.
+fn curve_speed(pts: &[crate::math::Vec2]) -> f32 {
+    let mut kappa_max = 0.0f32;
+    for w in pts.windows(5).step_by(1) {
+        let (a, b) = (w[2] - w[0], w[4] - w[2]);
+        let len = a.length() + b.length();
+        if len < 1e-3 {
+            continue;
+        }
+        let turn = crate::math::atan2(crate::math::cross(a, b), a.dot(b)).abs();
+        kappa_max = kappa_max.max(turn / (0.5 * len));
+    }
+    if kappa_max < 1e-4 { f32::INFINITY } else { (COMFORT_LATERAL_ACCEL / kappa_max).sqrt() }
+}
