@@ -9,11 +9,11 @@ use serde::Serialize;
 
 use crate::collision::{CollisionKind, Obb, leaves_drivable_area};
 use crate::config::{ConfigError, EnvConfig, Variant};
-use crate::map::{LaneId, LaneKind};
+use crate::map::LaneId;
 use crate::math::{Vec2, left_normal};
 use crate::reward::{Outcome, RewardTerms};
 use crate::route::{Route, RouteTracker, Tracking};
-use crate::scenario::{EvalRoute, Scenario, eval_route, random_route};
+use crate::scenario::{Scenario, eval_route, random_route};
 use crate::town::Town;
 use crate::traffic::{EgoRequest, EgoView, RELEASE_DISTANCE, Traffic};
 use crate::vehicle::{Action, VehicleState};
@@ -387,17 +387,6 @@ impl Env {
         }
         out
     }
-
-    /// Whether the lane is a road lane (not a junction connector).
-    #[must_use]
-    pub fn is_road_lane(&self, lane: LaneId) -> bool {
-        matches!(self.town.map.lanes[lane].kind, LaneKind::Road { .. })
-    }
-}
-
-/// Starts an episode of an evaluation route (convenience for drivers and tests).
-pub fn reset_eval(env: &mut Env, seed: u64, route: EvalRoute) -> Result<Observation, EnvError> {
-    env.reset(seed, Scenario::Eval(route))
 }
 
 /// 64-bit FNV-1a over words.

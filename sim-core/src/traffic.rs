@@ -12,7 +12,7 @@ use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
 use crate::collision::Obb;
-use crate::map::{JunctionId, LaneId, LaneKind};
+use crate::map::{JunctionId, LaneId};
 use crate::math::Vec2;
 use crate::town::Town;
 use crate::vehicle::VehicleParams;
@@ -452,12 +452,6 @@ fn pick_successor(town: &Town, lane: LaneId, rng: &mut ChaCha8Rng) -> Option<Lan
         1 => Some(succ[0]),
         n => Some(succ[(rng.next_u32() as usize) % n]),
     }
-}
-
-/// Whether `lane` is a road lane (not a connector).
-#[must_use]
-pub fn is_road_lane(town: &Town, lane: LaneId) -> bool {
-    matches!(town.map.lanes[lane].kind, LaneKind::Road { .. })
 }
 
 #[cfg(test)]
