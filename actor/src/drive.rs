@@ -18,7 +18,8 @@ pub struct DriveArgs {
     #[arg(long, default_value = "expert")]
     pub policy: String,
     /// A route name (straight_highway, straight_urban, straight_under_bridge, slight_curve,
-    /// sharp_curve, right_turn, left_turn) or `all`.
+    /// sharp_curve, right_turn, left_turn), `all` of them, or `random` (random training routes,
+    /// for any map).
     #[arg(long, default_value = "all")]
     pub route: String,
     /// Runs per route; run k uses seed S + k (different traffic).
@@ -63,12 +64,15 @@ pub fn load_town(map: Option<&std::path::Path>) -> Result<Arc<Town>> {
 }
 
 pub fn run(args: &DriveArgs) -> Result<()> {
-    let routes: Vec<EvalRoute> = if args.route == "all" {
-        EvalRoute::ALL.to_vec()
-    } else {
-        vec![EvalRoute::from_name(&args.route).with_context(|| {
-            format!("unknown route `{}`: expected `all` or one of {}", args.route, EvalRoute::ALL.map(EvalRoute::name).join(", "))
-        })?]
+    let scenarios: Vec<(&'static str, Scenario)> = match args.route.as_str() {
+        "all" => EvalRoute::ALL.iter().map(|&r| (r.name(), Scenario::Eval(r))).collect(),
+        "random" => vec![("random", Scenario::Random)],
+        name => {
+            let r = EvalRoute::from_name(name).with_context(|| {
+                format!("unknown route `{name}`: expected `all`, `random` or one of {}", EvalRoute::ALL.map(EvalRoute::name).join(", "))
+            })?;
+            vec![(r.name(), Scenario::Eval(r))]
+        }
     };
     if args.runs == 0 {
         anyhow::bail!("--runs must be at least 1");
@@ -80,9 +84,9 @@ pub fn run(args: &DriveArgs) -> Result<()> {
     }
     let mut env = Env::new(town, cfg).context("creating the environment")?;
     let mut reports = Vec::new();
-    for route in routes {
+    for (name, scenario) in scenarios {
         let mut rep = RouteReport {
-            route: route.name(),
+            route: name,
             runs: args.runs,
             completed: 0,
             collisions: 0,
@@ -93,7 +97,7 @@ pub fn run(args: &DriveArgs) -> Result<()> {
         for k in 0..args.runs {
             let seed = args.seed + u64::from(k);
             let mut policy = Policy::from_name(&args.policy, seed)?;
-            env.reset(seed, Scenario::Eval(route)).with_context(|| format!("starting route {}", route.name()))?;
+            env.reset(seed, scenario).with_context(|| format!("starting route {name}"))?;
             let mut ret = 0.0f64;
             loop {
                 let r = env.step(policy.act(&env))?;
@@ -106,7 +110,7 @@ pub fn run(args: &DriveArgs) -> Result<()> {
                         rep.collisions += 1;
                         rep.kinds.push(kind.name());
                     }
-                    tracing::debug!(route = route.name(), seed, steps = r.info.steps, ret, arrived = r.info.arrived, collision = ?r.info.collision, progress = r.info.progress, "run finished");
+                    tracing::debug!(route = name, seed, steps = r.info.steps, ret, arrived = r.info.arrived, collision = ?r.info.collision, progress = r.info.progress, "run finished");
                     break;
                 }
             }
