@@ -4,6 +4,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result};
 use clap::{Args, Subcommand};
+use sim_core::camera::CameraConfig;
 use sim_core::config::EnvConfig;
 use sim_core::env::Env;
 use sim_core::expert::Expert;
@@ -13,7 +14,8 @@ use crate::drive::load_town;
 
 #[derive(Debug, Subcommand)]
 pub enum BenchCommand {
-    /// Environment steps per second on one core (physics, traffic, collisions, reward).
+    /// Environment steps per second on one core (physics, traffic, collisions, reward, and the
+    /// camera with --camera).
     Sim(SimArgs),
 }
 
@@ -22,6 +24,9 @@ pub struct SimArgs {
     /// Moving traffic cars.
     #[arg(long, default_value_t = 50)]
     pub vehicles: usize,
+    /// Render the front camera each step at WIDTHxHEIGHT (gray), e.g. 84x84.
+    #[arg(long, value_name = "WxH", value_parser = crate::drive::parse_size)]
+    pub camera: Option<(u32, u32)>,
     /// Steps to time.
     #[arg(long, default_value_t = 200_000)]
     pub steps: u64,
@@ -41,6 +46,7 @@ pub fn run(cmd: &BenchCommand) -> Result<()> {
 fn sim(args: &SimArgs) -> Result<()> {
     let mut cfg = EnvConfig::default();
     cfg.traffic.vehicles = args.vehicles;
+    cfg.camera = args.camera.map(|(width, height)| CameraConfig { width, height, ..CameraConfig::default() });
     let mut env = Env::new(load_town(None)?, cfg).context("creating the environment")?;
     let expert = Expert::default();
     let (mut step_time, mut reset_time) = (Duration::ZERO, Duration::ZERO);
@@ -67,7 +73,14 @@ fn sim(args: &SimArgs) -> Result<()> {
     let steps_per_sec = steps as f64 / step_time.as_secs_f64();
     let with_resets = steps as f64 / (step_time + reset_time).as_secs_f64();
     if args.json {
-        println!("{}", serde_json::json!({ "steps_per_sec": steps_per_sec.round(), "vehicles": args.vehicles, "camera": null }));
+        println!(
+            "{}",
+            serde_json::json!({
+                "steps_per_sec": steps_per_sec.round(),
+                "vehicles": args.vehicles,
+                "camera": args.camera.map(|(w, h)| format!("{w}x{h}")),
+            })
+        );
     } else {
         println!(
             "vehicles {}: {:.0} steps/s in Env::step, {:.0} steps/s with resets ({} episodes), wall {:.1} s",

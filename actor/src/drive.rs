@@ -5,12 +5,14 @@ use std::sync::Arc;
 use anyhow::{Context, Result};
 use clap::Args;
 use serde::Serialize;
+use sim_core::camera::{BirdsEye, BirdsEyeConfig, CameraConfig};
 use sim_core::config::EnvConfig;
 use sim_core::env::Env;
 use sim_core::scenario::{EvalRoute, Scenario};
 use sim_core::town::Town;
 
 use crate::policy::Policy;
+use crate::record::RunRecorder;
 
 #[derive(Debug, Args)]
 pub struct DriveArgs {
@@ -34,9 +36,26 @@ pub struct DriveArgs {
     /// A map file in the documented format (default: the embedded town).
     #[arg(long)]
     pub map: Option<std::path::PathBuf>,
+    /// Write each step's front-camera and bird's-eye images as numbered PNGs under
+    /// DIR/ROUTE/runK/.
+    #[arg(long, value_name = "DIR")]
+    pub record: Option<std::path::PathBuf>,
+    /// With --record, also write an animated GIF of the front camera per run.
+    #[arg(long, requires = "record")]
+    pub gif: bool,
+    /// Front-camera size for --record, WIDTHxHEIGHT (default 160x120, in colour).
+    #[arg(long, value_name = "WxH", default_value = "160x120", value_parser = parse_size)]
+    pub camera: (u32, u32),
     /// Print one JSON object on the last line of stdout instead of a table.
     #[arg(long)]
     pub json: bool,
+}
+
+/// Parses `WIDTHxHEIGHT`.
+pub fn parse_size(s: &str) -> Result<(u32, u32), String> {
+    let (w, h) = s.split_once('x').ok_or_else(|| format!("`{s}` is not WIDTHxHEIGHT, e.g. 84x84"))?;
+    let parse = |v: &str| v.trim().parse::<u32>().map_err(|_| format!("`{v}` in `{s}` is not a whole number of pixels"));
+    Ok((parse(w)?, parse(h)?))
 }
 
 #[derive(Debug, Serialize)]
@@ -82,24 +101,29 @@ pub fn run(args: &DriveArgs) -> Result<()> {
     if let Some(n) = args.traffic {
         cfg.traffic.vehicles = n;
     }
+    // Rendering costs time: only when recording.
+    cfg.camera =
+        args.record.as_ref().map(|_| CameraConfig { width: args.camera.0, height: args.camera.1, rgb: true, ..CameraConfig::default() });
+    let birdseye = BirdsEye::new(&BirdsEyeConfig::default())?;
     let mut env = Env::new(town, cfg).context("creating the environment")?;
     let mut reports = Vec::new();
     for (name, scenario) in scenarios {
-        let mut rep = RouteReport {
-            route: name,
-            runs: args.runs,
-            completed: 0,
-            collisions: 0,
-            mean_return: 0.0,
-            mean_steps: 0.0,
-            kinds: Vec::new(),
-        };
+        let mut rep =
+            RouteReport { route: name, runs: args.runs, completed: 0, collisions: 0, mean_return: 0.0, mean_steps: 0.0, kinds: Vec::new() };
         for k in 0..args.runs {
             let seed = args.seed + u64::from(k);
             let mut policy = Policy::from_name(&args.policy, seed)?;
             env.reset(seed, scenario).with_context(|| format!("starting route {name}"))?;
+            let mut recorder = match &args.record {
+                Some(dir) => Some(RunRecorder::new(dir.join(name).join(format!("run{k}")), args.gif)?),
+                None => None,
+            };
             let mut ret = 0.0f64;
             loop {
+                if let Some(rec) = recorder.as_mut() {
+                    let bev = env.birdseye(&birdseye);
+                    rec.frame(env.steps(), env.image(), &bev)?;
+                }
                 let r = env.step(policy.act(&env))?;
                 ret += f64::from(r.reward);
                 if r.terminated || r.truncated {
@@ -109,6 +133,12 @@ pub fn run(args: &DriveArgs) -> Result<()> {
                     if let Some(kind) = r.info.collision {
                         rep.collisions += 1;
                         rep.kinds.push(kind.name());
+                    }
+                    if let Some(rec) = recorder.take() {
+                        let bev = env.birdseye(&birdseye);
+                        let mut rec = rec;
+                        rec.frame(env.steps(), env.image(), &bev)?;
+                        rec.finish()?;
                     }
                     tracing::debug!(route = name, seed, steps = r.info.steps, ret, arrived = r.info.arrived, collision = ?r.info.collision, progress = r.info.progress, "run finished");
                     break;

@@ -4,6 +4,7 @@
 mod bench;
 mod drive;
 mod policy;
+mod record;
 
 use anyhow::Result;
 use clap::{Parser, Subcommand};

@@ -3,6 +3,7 @@
 
 use serde::{Deserialize, Serialize};
 
+use crate::camera::CameraConfig;
 use crate::reward::RewardConfig;
 use crate::traffic::IdmParams;
 use crate::vehicle::VehicleParams;
@@ -38,6 +39,8 @@ pub struct EnvConfig {
     pub reward: RewardConfig,
     pub traffic: TrafficConfig,
     pub vehicle: VehicleParams,
+    /// The front camera; `None` renders no image (default: 84×84 gray).
+    pub camera: Option<CameraConfig>,
 }
 
 impl Default for EnvConfig {
@@ -53,6 +56,7 @@ impl Default for EnvConfig {
             reward: RewardConfig::default(),
             traffic: TrafficConfig::default(),
             vehicle: VehicleParams::default(),
+            camera: Some(CameraConfig::default()),
         }
     }
 }
@@ -146,6 +150,9 @@ impl EnvConfig {
             format!("{} must be shorter than vehicle.length ({})", v.wheelbase, v.length)
         })?;
         check(v.max_steer < 1.5, "vehicle.max_steer", || format!("{} rad must be below 1.5 (~86°)", v.max_steer))?;
+        if let Some(c) = &self.camera {
+            c.validate()?;
+        }
         Ok(())
     }
 }

@@ -7,6 +7,7 @@ use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::Serialize;
 
+use crate::camera::{BirdsEye, Camera, Image, SceneBox, car_box};
 use crate::collision::{CollisionKind, Obb, leaves_drivable_area};
 use crate::config::{ConfigError, EnvConfig, Variant};
 use crate::map::LaneId;
@@ -25,6 +26,9 @@ pub struct Observation {
     pub speed: f32,
     /// Distance to the closest route waypoint, metres (hybrid variant only).
     pub d: Option<f32>,
+    /// The front camera's image, if a camera is configured.
+    #[serde(skip)]
+    pub image: Option<Image>,
 }
 
 /// Diagnostics of a step.
@@ -93,12 +97,17 @@ pub struct Env {
     ego_request: Option<EgoRequest>,
     done: bool,
     last_info: StepInfo,
+    camera: Option<Camera>,
+    image: Image,
+    /// Scratch: the vehicles as the renderers see them.
+    scene: Vec<SceneBox>,
 }
 
 impl Env {
     /// An environment on `town` with `cfg` (validated), reset to a random episode with seed 0.
     pub fn new(town: Arc<Town>, cfg: EnvConfig) -> Result<Self, EnvError> {
         cfg.validate()?;
+        let camera = cfg.camera.as_ref().map(Camera::new).transpose()?;
         let traffic = Traffic::empty(&town, cfg.traffic.idm, cfg.vehicle);
         let dummy = crate::route::Route {
             path: crate::polyline::Polyline::new([Vec2::ZERO, Vec2::X]).expect("two points"),
@@ -133,6 +142,9 @@ impl Env {
                 reward_terms: RewardTerms::default(),
                 steps: 0,
             },
+            camera,
+            image: Image::new(0, 0, 1),
+            scene: Vec::new(),
         };
         env.reset(0, Scenario::Random)?;
         Ok(env)
@@ -178,6 +190,7 @@ impl Env {
         self.traffic.spawn(&self.town, self.cfg.traffic.vehicles, &avoid, self.cfg.traffic.spawn_clearance, &mut self.rng);
         self.parked = self.place_parked_cars(self.cfg.traffic.parked_cars, start);
         self.last_info = self.info_now(None, false, RewardTerms::default());
+        self.render();
         Ok(self.observation())
     }
 
@@ -214,13 +227,50 @@ impl Env {
         let truncated = !terminated && self.steps >= self.time_limit;
         self.done = terminated || truncated;
         self.last_info = self.info_now(collision, arrived, terms);
+        self.render();
         Ok(StepResult { observation: self.observation(), reward: terms.total, terminated, truncated, info: self.last_info.clone() })
     }
 
     /// The current observation.
     #[must_use]
     pub fn observation(&self) -> Observation {
-        Observation { speed: self.ego.speed, d: (self.cfg.variant == Variant::Hybrid).then_some(self.tracking.d) }
+        Observation {
+            speed: self.ego.speed,
+            d: (self.cfg.variant == Variant::Hybrid).then_some(self.tracking.d),
+            image: self.camera.is_some().then(|| self.image.clone()),
+        }
+    }
+
+    /// The last front-camera image (empty without a camera).
+    #[must_use]
+    pub fn image(&self) -> &Image {
+        &self.image
+    }
+
+    /// Renders the bird's-eye debug view around the ego vehicle.
+    #[must_use]
+    pub fn birdseye(&mut self, view: &BirdsEye) -> Image {
+        self.collect_scene();
+        view.render(&self.town, self.ego.pos, self.ego_body(), &self.scene, &self.route, self.tracker.waypoint)
+    }
+
+    fn collect_scene(&mut self) {
+        self.scene.clear();
+        for (i, (body, _)) in self.traffic.bodies().enumerate() {
+            self.scene.push(car_box(body, i));
+        }
+        for (i, body) in self.parked.iter().enumerate() {
+            self.scene.push(car_box(*body, i + 3));
+        }
+    }
+
+    fn render(&mut self) {
+        if self.camera.is_none() {
+            return;
+        }
+        self.collect_scene();
+        let camera = self.camera.as_mut().expect("checked above");
+        camera.render(&self.town, self.ego.pos, self.ego.heading, &self.scene, &mut self.image);
     }
 
     /// Diagnostics of the last step (or of the reset).

@@ -6,6 +6,7 @@
 
 pub mod actions;
 pub mod astar;
+pub mod camera;
 pub mod collision;
 pub mod config;
 pub mod env;

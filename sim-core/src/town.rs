@@ -3,7 +3,10 @@
 
 use std::sync::Arc;
 
-use crate::collision::StaticGrid;
+use crate::camera::SceneBox;
+use crate::camera::front::deck_box;
+use crate::camera::palette;
+use crate::collision::{Obb, StaticGrid};
 use crate::map::{JunctionId, LaneId, LaneKind, Map, MapError};
 use crate::topology::LaneGraph;
 
@@ -20,6 +23,8 @@ pub struct Town {
     pub curve_speed: Vec<f32>,
     /// Per lane: for connectors, the junction and the connector's position in its list.
     pub connector_slot: Vec<Option<(JunctionId, usize)>>,
+    /// The static scenery as the renderers draw it: obstacles and overpass decks.
+    pub scene_statics: Vec<SceneBox>,
 }
 
 impl Town {
@@ -35,7 +40,14 @@ impl Town {
                 connector_slot[c] = Some((j, k));
             }
         }
-        Arc::new(Self { map, graph, statics, curve_speed, connector_slot })
+        let mut scene_statics: Vec<SceneBox> = map
+            .obstacles
+            .iter()
+            .enumerate()
+            .map(|(k, o)| SceneBox { footprint: Obb::from(o), bottom: 0.0, top: o.height, colour: palette::obstacle(o.kind, k) })
+            .collect();
+        scene_statics.extend(map.overpasses.iter().map(deck_box));
+        Arc::new(Self { map, graph, statics, curve_speed, connector_slot, scene_statics })
     }
 
     /// The embedded default town.

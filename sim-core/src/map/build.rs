@@ -67,6 +67,7 @@ pub(super) fn build(spec: &MapSpec) -> Result<Map, MapError> {
         centres.push(centre);
         ends.push((from, to));
     }
+    check_extent(spec, &centres)?;
 
     // Road ends per node.
     let mut at_node: Vec<Vec<RoadEnd>> = vec![Vec::new(); nodes.len()];
@@ -274,8 +275,39 @@ pub(super) fn build(spec: &MapSpec) -> Result<Map, MapError> {
         overpasses.push(Overpass { a, b, width: o.width, clearance: o.clearance, thickness: o.thickness });
     }
 
-    let surface = paint_surface(&roads, &junctions, &at_node, &is_junction, &obstacles);
+    let surface = paint_surface(&roads, &junctions, &at_node, &is_junction, &obstacles, &overpasses);
     Ok(Map { name: spec.name.clone(), roads, lanes, junctions, obstacles, overpasses, surface })
+}
+
+/// The surface raster may hold at most this many cells (64 MiB: 4 km² at `RASTER_CELL`).
+const MAX_RASTER_CELLS: f64 = (1u64 << 26) as f64;
+
+/// Refuses maps whose bounding box (as `paint_surface` computes it, 30 m margin included) would
+/// need a raster too large to allocate: coordinates up to ±1e6 m are valid numbers, but a map
+/// spanning them would abort the process on allocation.
+fn check_extent(spec: &MapSpec, centres: &[Polyline]) -> Result<(), MapError> {
+    let mut pts: Vec<Vec2> = centres.iter().flat_map(|c| c.points().iter().copied()).collect();
+    pts.extend(spec.buildings.iter().map(|b| Vec2::new(b.x, b.y)));
+    pts.extend(spec.poles.iter().map(|p| Vec2::new(p.x, p.y)));
+    for o in &spec.overpasses {
+        let r = Vec2::splat(o.width / 2.0);
+        pts.extend([Vec2::new(o.x1, o.y1) - r, Vec2::new(o.x1, o.y1) + r, Vec2::new(o.x2, o.y2) - r, Vec2::new(o.x2, o.y2) + r]);
+    }
+    let (mut lo, mut hi) = (Vec2::splat(f32::INFINITY), Vec2::splat(f32::NEG_INFINITY));
+    for p in pts {
+        lo = lo.min(p);
+        hi = hi.max(p);
+    }
+    let (w, h) = (f64::from(hi.x - lo.x) + 60.0, f64::from(hi.y - lo.y) + 60.0);
+    let cells = (w / f64::from(RASTER_CELL)).ceil() * (h / f64::from(RASTER_CELL)).ceil();
+    if cells > MAX_RASTER_CELLS {
+        return Err(MapError::at(
+            0,
+            None,
+            format!("the map spans {w:.0} m × {h:.0} m (roads and obstacles, with margins); it must fit in 4 km² (e.g. 2 km × 2 km)"),
+        ));
+    }
+    Ok(())
 }
 
 /// Whether two road ends at a node continue each other smoothly (same direction, same lanes).
@@ -398,6 +430,7 @@ fn paint_surface(
     at_node: &[Vec<RoadEnd>],
     is_junction: &[bool],
     obstacles: &[StaticObstacle],
+    overpasses: &[Overpass],
 ) -> SurfaceRaster {
     let margin = 30.0;
     let mut lo = Vec2::splat(f32::INFINITY);
@@ -427,6 +460,7 @@ fn paint_surface(
             raster.fill_convex(&strip(lw, rw), Surface::Shoulder);
             raster.fill_convex(&strip(lw - r.shoulder, rw - r.shoulder), Surface::Road);
         }
+        paint_markings(&mut raster, r);
     }
     let mut j = 0;
     for (n, list) in at_node.iter().enumerate() {
@@ -439,5 +473,52 @@ fn paint_surface(
         raster.fill_convex(&junctions[j].outline, Surface::Junction);
         j += 1;
     }
+    for o in overpasses {
+        let axis = (o.b - o.a).normalize();
+        let side = left_normal(axis) * (o.width / 2.0);
+        raster.shade_convex(&[o.a - side, o.b - side, o.b + side, o.a + side]);
+    }
+    raster.build_levels(RASTER_LEVELS);
     raster
+}
+
+/// Levels of the surface raster pyramid (0.25, 0.5, 1, 2 and 4 m cells).
+const RASTER_LEVELS: usize = 5;
+
+/// Width of painted lines, metres (wide enough to stay continuous on the raster).
+const LINE_WIDTH: f32 = 0.3;
+/// Dashed lines: painted and gap lengths, metres.
+const DASH: (f32, f32) = (3.0, 6.0);
+
+/// Paints a road's lines: a solid yellow centre line between the two directions, dashed white
+/// lines between lanes of one direction, solid white edge lines where there is a shoulder.
+fn paint_markings(raster: &mut SurfaceRaster, r: &Road) {
+    let (s0, s1) = (r.cut_start, r.centre.length() - r.cut_end);
+    let (nf, nb) = (r.forward.len() as f32, r.backward.len() as f32);
+    let w = r.lane_width;
+    let mut lines: Vec<(f32, Surface, bool)> = Vec::new(); // (offset, kind, dashed)
+    if nf > 0.0 && nb > 0.0 {
+        lines.push((0.0, Surface::YellowLine, false));
+    }
+    for k in 1..r.forward.len() {
+        lines.push((-(k as f32) * w, Surface::WhiteLine, true));
+    }
+    for k in 1..r.backward.len() {
+        lines.push((k as f32 * w, Surface::WhiteLine, true));
+    }
+    if r.shoulder > 0.0 {
+        lines.push((-nf * w, Surface::WhiteLine, false));
+        lines.push((nb * w, Surface::WhiteLine, false));
+    }
+    let corner = |s: f32, off: f32| r.centre.point_at(s) + left_normal(centre_tangent(&r.centre, s)) * off;
+    for (offset, kind, dashed) in lines {
+        let mut s = s0;
+        while s < s1 {
+            let step = if dashed { DASH.0 } else { SAMPLE };
+            let e = (s + step).min(s1);
+            let h = LINE_WIDTH / 2.0;
+            raster.fill_convex(&[corner(s, offset - h), corner(e, offset - h), corner(e, offset + h), corner(s, offset + h)], kind);
+            s = if dashed { e + DASH.1 } else { e };
+        }
+    }
 }

@@ -183,6 +183,14 @@ pub fn parse(text: &str) -> Result<MapSpec, MapError> {
                     }
                     spec.roads.push(road);
                 }
+                "map" | "defaults" | "node" | "road" | "building" | "pole" | "overpass" => {
+                    // A forgotten `end`: the road's line is where the fix goes.
+                    return Err(MapError::at(
+                        road.line,
+                        None,
+                        format!("road `{}` is never closed with `end` (line {line} starts a `{keyword}` statement)", road.name),
+                    ));
+                }
                 other => {
                     return Err(MapError::at(
                         line,

@@ -9,7 +9,7 @@ mod surface;
 use crate::math::Vec2;
 use crate::polyline::Polyline;
 pub use format::{MapError, MapSpec};
-pub use surface::{Surface, SurfaceRaster};
+pub use surface::{SHADE, Surface, SurfaceRaster};
 
 /// Index of a lane in [`Map::lanes`].
 pub type LaneId = usize;
