@@ -457,3 +457,45 @@ impl Fnv {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::expert::Expert;
+
+    /// Hashes of the camera images of an episode driven by the reference driver.
+    fn image_hashes(seed: u64) -> Vec<u64> {
+        let mut cfg = EnvConfig::default();
+        cfg.traffic.vehicles = 30;
+        let mut env = Env::new(Town::default_town(), cfg).unwrap();
+        env.reset(seed, Scenario::Eval(crate::scenario::EvalRoute::LeftTurn)).unwrap();
+        let expert = Expert::default();
+        let mut hashes = vec![env.image().hash()];
+        for _ in 0..150 {
+            let r = env.step(expert.act(&env)).unwrap();
+            let img = r.observation.image.expect("camera configured");
+            assert_eq!((img.width, img.height, img.channels), (84, 84, 1));
+            hashes.push(img.hash());
+            if r.terminated || r.truncated {
+                break;
+            }
+        }
+        hashes
+    }
+
+    #[test]
+    fn same_seed_gives_identical_images() {
+        let a = image_hashes(7);
+        assert!(a.len() > 100, "the episode should last: {} steps", a.len());
+        assert_eq!(a, image_hashes(7));
+        assert_ne!(a, image_hashes(8), "other traffic should look different");
+    }
+
+    #[test]
+    fn no_camera_means_no_image() {
+        let cfg = EnvConfig { camera: None, ..EnvConfig::default() };
+        let mut env = Env::new(Town::default_town(), cfg).unwrap();
+        let r = env.step(Action::new(1.0, 0.0, 0.0)).unwrap();
+        assert!(r.observation.image.is_none());
+    }
+}

@@ -416,3 +416,111 @@ pub(crate) fn deck_box(o: &Overpass) -> SceneBox {
 pub fn car_box(body: Obb, index: usize) -> SceneBox {
     SceneBox { footprint: body, bottom: 0.0, top: CAR_HEIGHT, colour: palette::CARS[index % palette::CARS.len()] }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::camera::palette::{luma, surface};
+    use crate::map::Surface;
+
+    /// A straight east–west road with one pole beside it, no junctions.
+    fn one_road_town() -> std::sync::Arc<Town> {
+        Town::from_map_text("node A x=0 y=0\nroad r from=A heading=0 to=B lanes=1,1 shoulder=2\n straight length=300\nend\npole x=40 y=-9 radius=0.3 height=8\n")
+            .expect("valid map")
+    }
+
+    fn gray(kind: Surface) -> u8 {
+        luma(surface(kind))
+    }
+
+    #[test]
+    fn a_known_point_projects_to_the_expected_pixel() {
+        // 84 px wide, 90° field of view: f = 42 px. Horizon row: 42 − 42·tan 8° = 36.097.
+        let cam = Camera::new(&CameraConfig::default()).unwrap();
+        let (pos, heading) = (Vec2::new(5.0, 5.0), 0.0);
+        // Lens at x = 6 (1 m ahead of the centre), 1.6 m high. A point 10 m ahead at lens height
+        // is on the optical axis: column 42, the horizon row.
+        let (c, r) = cam.project(pos, heading, Vec2::new(16.0, 5.0), 1.6).unwrap();
+        assert!((c - 42.0).abs() < 1e-4 && (r - 36.097).abs() < 1e-3, "({c}, {r})");
+        // 2 m to the left: 42 − 42·2/10 = 33.6. On the ground: 36.097 + 42·1.6/10 = 42.817.
+        let (c, r) = cam.project(pos, heading, Vec2::new(16.0, 7.0), 0.0).unwrap();
+        assert!((c - 33.6).abs() < 1e-4 && (r - 42.817).abs() < 1e-3, "({c}, {r})");
+        assert!(cam.project(pos, heading, Vec2::new(0.0, 5.0), 0.0).is_none(), "behind the lens");
+    }
+
+    #[test]
+    fn a_pole_appears_where_it_projects() {
+        let town = one_road_town();
+        let mut cam = Camera::new(&CameraConfig::default()).unwrap();
+        let mut img = Image::new(0, 0, 1);
+        // Driving east in the right lane (y = −1.75); the pole stands at (40, −9), 8 m tall.
+        let pos = Vec2::new(10.0, -1.75);
+        cam.render(&town, pos, 0.0, &[], &mut img);
+        let (c, r) = cam.project(pos, 0.0, Vec2::new(40.0, -9.0), 4.0).unwrap();
+        let px = img.pixel(c as u32, r as u32)[0];
+        let pole = luma(palette::obstacle(crate::map::ObstacleKind::Pole, 0));
+        assert!(px.abs_diff(pole) <= 10, "pixel ({c}, {r}) is {px}, pole gray is about {pole}");
+    }
+
+    #[test]
+    fn a_straight_road_fills_the_lower_middle_and_sky_the_top() {
+        let town = one_road_town();
+        let mut cam = Camera::new(&CameraConfig::default()).unwrap();
+        let mut img = Image::new(0, 0, 1);
+        cam.render(&town, Vec2::new(10.0, -1.75), 0.0, &[], &mut img);
+        assert_eq!((img.width, img.height, img.channels, img.data.len()), (84, 84, 1, 84 * 84));
+        // Bottom rows, middle columns: asphalt (or lane lines) of our lane.
+        let road = [gray(Surface::Road), gray(Surface::WhiteLine), gray(Surface::YellowLine)];
+        for (c, r) in [(42, 83), (45, 70), (40, 60)] {
+            assert!(road.contains(&img.pixel(c, r)[0]), "({c}, {r}) = {}", img.pixel(c, r)[0]);
+        }
+        // Above the horizon (row 36): sky, brighter than anything on the ground here.
+        for c in [0, 42, 83] {
+            assert!(img.pixel(c, 2)[0] > 150, "sky at ({c}, 2) = {}", img.pixel(c, 2)[0]);
+        }
+    }
+
+    #[test]
+    fn a_vehicle_ahead_hides_the_road_behind_it() {
+        let town = one_road_town();
+        let mut cam = Camera::new(&CameraConfig { rgb: true, ..CameraConfig::default() }).unwrap();
+        let mut img = Image::new(0, 0, 3);
+        let pos = Vec2::new(10.0, -1.75);
+        cam.render(&town, pos, 0.0, &[], &mut img);
+        // Where the road 15 m ahead shows now...
+        let (c, r) = cam.project(pos, 0.0, Vec2::new(26.0, -1.75), 0.0).unwrap();
+        let (c, r) = (c as u32, r as u32 - 1);
+        assert_eq!(img.pixel(c, r), surface(Surface::Road));
+        // ...a car 10 m ahead in the same lane covers it.
+        let car = car_box(Obb::new(Vec2::new(21.0, -1.75), Vec2::new(2.25, 0.95), 0.0), 3);
+        cam.render(&town, pos, 0.0, &[car], &mut img);
+        let px = img.pixel(c, r);
+        assert_ne!(px, surface(Surface::Road));
+        // The face seen is the car's back (facing west), its colour shaded by the fixed light.
+        assert_eq!(px, scale(car.colour, 0.78 + 0.22 * Vec2::new(-1.0, 0.0).dot(Vec2::new(-0.6, -0.8))));
+    }
+
+    #[test]
+    fn rendering_is_deterministic_and_sensitive_to_the_pose() {
+        let town = Town::default_town();
+        let mut a = Camera::new(&CameraConfig::default()).unwrap();
+        let mut b = Camera::new(&CameraConfig::default()).unwrap();
+        let (mut ia, mut ib) = (Image::new(0, 0, 1), Image::new(0, 0, 1));
+        a.render(&town, Vec2::new(101.75, 40.0), 1.5708, &[], &mut ia);
+        b.render(&town, Vec2::new(101.75, 40.0), 1.5708, &[], &mut ib);
+        assert_eq!(ia.hash(), ib.hash());
+        b.render(&town, Vec2::new(101.75, 41.0), 1.5708, &[], &mut ib);
+        assert_ne!(ia.hash(), ib.hash());
+    }
+
+    #[test]
+    fn invalid_camera_config_names_the_field() {
+        let e = Camera::new(&CameraConfig { width: 0, ..CameraConfig::default() }).unwrap_err();
+        assert_eq!(e.field, "camera.width");
+        assert_eq!(e.to_string(), "config field `camera.width`: 0 pixels is outside 8..=1024");
+        let e = Camera::new(&CameraConfig { hfov_deg: 200.0, ..CameraConfig::default() }).unwrap_err();
+        assert_eq!(e.field, "camera.hfov_deg");
+        let e = Camera::new(&CameraConfig { mount_height: f32::NAN, ..CameraConfig::default() }).unwrap_err();
+        assert_eq!(e.field, "camera.mount_height");
+    }
+}
