@@ -13,7 +13,7 @@ pub enum Policy {
     /// The model-based reference driver.
     Expert(Expert),
     /// Uniformly random actions of the paper's six, from a seeded stream.
-    Random(ChaCha8Rng),
+    Random(Box<ChaCha8Rng>),
 }
 
 impl Policy {
@@ -21,7 +21,7 @@ impl Policy {
     pub fn from_name(name: &str, seed: u64) -> anyhow::Result<Self> {
         match name {
             "expert" => Ok(Self::Expert(Expert::default())),
-            "random" => Ok(Self::Random(ChaCha8Rng::seed_from_u64(seed ^ 0x5eed))),
+            "random" => Ok(Self::Random(Box::new(ChaCha8Rng::seed_from_u64(seed ^ 0x5eed)))),
             other => anyhow::bail!("unknown policy `{other}`: expected `expert` or `random`"),
         }
     }

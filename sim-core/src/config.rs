@@ -167,8 +167,7 @@ mod tests {
         let mut c = EnvConfig::default();
         c.reward.d0 = -1.0;
         assert_eq!(c.validate().unwrap_err().field, "reward.d0");
-        let mut c = EnvConfig::default();
-        c.route_length_max = 10.0;
+        let c = EnvConfig { route_length_max: 10.0, ..EnvConfig::default() };
         let e = c.validate().unwrap_err();
         assert_eq!(e.to_string(), "config field `route_length_max`: 10 must be >= route_length_min (50)");
         let mut c = EnvConfig::default();

@@ -244,7 +244,7 @@ impl Traffic {
         // Release: cars whose rear has cleared their connector.
         for c in &mut self.cars {
             if let Some(h) = c.hold
-                && (!c.active || (c.lane != h && !(c.next == Some(h)) && c.s > RELEASE_DISTANCE))
+                && (!c.active || (c.lane != h && c.next != Some(h) && c.s > RELEASE_DISTANCE))
             {
                 c.hold = None;
             }

@@ -156,7 +156,7 @@ struct View {
 impl View {
     /// World point to camera frame: (depth along the axis, offset to the left).
     #[inline]
-    fn to_camera(&self, p: Vec2) -> (f32, f32) {
+    fn camera_coords(&self, p: Vec2) -> (f32, f32) {
         let d = p - self.origin;
         (d.dot(self.forward), d.dot(self.left))
     }
@@ -227,7 +227,7 @@ impl Camera {
     #[must_use]
     pub fn project(&self, pos: Vec2, heading: f32, point: Vec2, height: f32) -> Option<(f32, f32)> {
         let view = self.view(pos, heading);
-        let (z, l) = view.to_camera(point);
+        let (z, l) = view.camera_coords(point);
         (z > NEAR).then(|| (self.cx - self.f * l / z, self.cy - self.f * (height - self.cfg.mount_height) / z))
     }
 
@@ -300,7 +300,7 @@ impl Camera {
 
     fn draw_box<P: Pixel>(&self, view: &View, b: &SceneBox, depth: &mut [f32], buf: &mut [P]) {
         let radius = b.footprint.half.length();
-        let (zc, lc) = view.to_camera(b.footprint.centre);
+        let (zc, lc) = view.camera_coords(b.footprint.centre);
         let half_fov = self.cx / self.f;
         if zc < -radius || zc > self.cfg.max_distance + radius || lc.abs() > (zc + radius) * half_fov + radius {
             return;
@@ -316,7 +316,7 @@ impl Camera {
             let normal = Vec2::new(edge.y, -edge.x).normalize_or_zero();
             // Fixed light from the south-west, so that faces read as solid.
             let shade = 0.78 + 0.22 * normal.dot(Vec2::new(-0.6, -0.8));
-            self.draw_face(view.to_camera(a), view.to_camera(c), b.bottom, b.top, P::from_rgb(scale(b.colour, shade)), depth, buf);
+            self.draw_face(view.camera_coords(a), view.camera_coords(c), b.bottom, b.top, P::from_rgb(scale(b.colour, shade)), depth, buf);
         }
     }
 
@@ -370,7 +370,7 @@ impl Camera {
     fn draw_underside<P: Pixel>(&self, view: &View, o: &Overpass, depth: &mut [f32], buf: &mut [P]) {
         let centre = (o.a + o.b) / 2.0;
         let reach = o.a.distance(o.b) / 2.0 + o.width;
-        let (zc, _) = view.to_camera(centre);
+        let (zc, _) = view.camera_coords(centre);
         if zc < -reach || zc > self.cfg.max_distance + reach {
             return;
         }
@@ -506,10 +506,10 @@ mod tests {
         let mut a = Camera::new(&CameraConfig::default()).unwrap();
         let mut b = Camera::new(&CameraConfig::default()).unwrap();
         let (mut ia, mut ib) = (Image::new(0, 0, 1), Image::new(0, 0, 1));
-        a.render(&town, Vec2::new(101.75, 40.0), 1.5708, &[], &mut ia);
-        b.render(&town, Vec2::new(101.75, 40.0), 1.5708, &[], &mut ib);
+        a.render(&town, Vec2::new(101.75, 40.0), std::f32::consts::FRAC_PI_2, &[], &mut ia);
+        b.render(&town, Vec2::new(101.75, 40.0), std::f32::consts::FRAC_PI_2, &[], &mut ib);
         assert_eq!(ia.hash(), ib.hash());
-        b.render(&town, Vec2::new(101.75, 41.0), 1.5708, &[], &mut ib);
+        b.render(&town, Vec2::new(101.75, 41.0), std::f32::consts::FRAC_PI_2, &[], &mut ib);
         assert_ne!(ia.hash(), ib.hash());
     }
 
