@@ -1,0 +1,137 @@
+//! `learner bench`: the cost of a full DQN update, and ingestion throughput over gRPC on loopback.
+
+use std::time::{Duration, Instant};
+
+use anyhow::{Context, Result, bail};
+use candle_core::{DType, Device, Tensor};
+use proto::v1 as pb;
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+use crate::config::{AgentConfig, RunConfig};
+use crate::dqn::{Batch, Dqn};
+use crate::net::NetShape;
+use crate::serve::{ServeOptions, start};
+
+/// Parses `WxHxC`, e.g. `84x84x3`.
+pub fn parse_input(s: &str) -> Result<(usize, usize, usize), String> {
+    let parts: Vec<&str> = s.split('x').collect();
+    let [w, h, c] = parts.as_slice() else { return Err(format!("`{s}` is not WIDTHxHEIGHTxCHANNELS, e.g. 84x84x3")) };
+    let num = |v: &str| v.parse::<usize>().map_err(|_| format!("`{v}` in `{s}` is not a whole number"));
+    let (w, h, c) = (num(w)?, num(h)?, num(c)?);
+    if !(8..=1024).contains(&w) || !(8..=1024).contains(&h) || !(c == 1 || c == 3) {
+        return Err(format!("`{s}`: width and height must be 8..=1024 and channels 1 or 3"));
+    }
+    Ok((w, h, c))
+}
+
+/// Times full DQN updates (online forward and backward, target forward on the next states,
+/// optimizer step) of the paper's network at `input` with batch `batch`.
+pub fn train(input: (usize, usize, usize), batch: usize, updates: usize) -> Result<serde_json::Value> {
+    let (w, h, c) = input;
+    let agent = AgentConfig::default();
+    let shape = NetShape { height: h, width: w, channels: c, scalars: 2, actions: 6, filters: agent.conv_filters, hidden: agent.hidden };
+    let device = Device::Cpu;
+    let mut dqn = Dqn::new(shape, &agent, &device)?;
+    let mut rng = ChaCha8Rng::seed_from_u64(1);
+    let mut noise = |n: usize| -> Vec<f32> { (0..n).map(|_| rng.next_u32() as f32 / u32::MAX as f32).collect() };
+    let b = Batch {
+        images: Tensor::from_vec(noise(batch * c * h * w), (batch, c, h, w), &device)?,
+        scalars: Tensor::from_vec(noise(batch * 2), (batch, 2), &device)?,
+        actions: Tensor::from_vec((0..batch as u32).map(|i| i % 6).collect::<Vec<_>>(), batch, &device)?,
+        rewards: Tensor::from_vec(noise(batch), batch, &device)?,
+        next_images: Tensor::from_vec(noise(batch * c * h * w), (batch, c, h, w), &device)?,
+        next_scalars: Tensor::from_vec(noise(batch * 2), (batch, 2), &device)?,
+        discounts: Tensor::full(0.99f32, batch, &device)?,
+        weights: Tensor::ones(batch, DType::F32, &device)?,
+    };
+    dqn.update(&b)?; // warm-up
+    let start = Instant::now();
+    for i in 0..updates {
+        dqn.update(&b)?;
+        tracing::info!(update = i + 1, of = updates, "benchmarking");
+    }
+    let secs = start.elapsed().as_secs_f64();
+    Ok(serde_json::json!({
+        "updates_per_sec": updates as f64 / secs,
+        "batch": batch,
+        "input": format!("{w}x{h}x{c}"),
+        "ms_per_update": secs * 1000.0 / updates as f64,
+    }))
+}
+
+/// Streams batches of 64 transitions of 84×84 gray frames to an in-process learner on loopback for
+/// `seconds` and counts the transitions acknowledged per second. Training is held off (the replay
+/// never reaches its minimum) so that only ingestion is measured.
+pub async fn ingest(seconds: f64) -> Result<serde_json::Value> {
+    let dir = std::env::temp_dir().join(format!("learner-bench-ingest-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let mut cfg = RunConfig::default();
+    cfg.agent.replay_capacity = 200_000;
+    cfg.agent.min_replay = 200_000;
+    cfg.service.listen = "127.0.0.1:0".into();
+    cfg.service.run_dir = dir.display().to_string();
+    cfg.service.checkpoint_interval_secs = 3600;
+    let cfg_path = dir.with_extension("toml");
+    std::fs::write(&cfg_path, cfg.to_toml())?;
+    let running = start(ServeOptions { config: Some(cfg_path.clone()), ..ServeOptions::default() }).await?;
+    let mut client = crate::status::connect(&running.addr.to_string(), None).await?;
+    let reg = client.register(pb::RegisterRequest { name: "bench".into(), envs: 1, protocol: crate::service::PROTOCOL }).await?.into_inner();
+    let frame = vec![100u8; 84 * 84];
+    let actor_id = reg.actor_id.clone();
+    let (mut episode, mut t) = (0u64, 0u32);
+    let mut make_batch = move |seq: u64| {
+        let steps = (0..64)
+            .map(|_| {
+                let s = pb::Step {
+                    env: 0,
+                    episode,
+                    t,
+                    obs: Some(pb::Observation { image: frame.clone(), speed: 1.0, d: 0.5 }),
+                    action: 1,
+                    reward: 0.1,
+                    terminated: false,
+                    truncated: t == 199,
+                };
+                t += 1;
+                if t == 200 {
+                    t = 0;
+                    episode += 1;
+                }
+                s
+            })
+            .collect();
+        pb::ExperienceBatch { actor_id: actor_id.clone(), seq, steps, episodes: vec![], weights_version: 1, epsilon: 1.0, dropped_steps: 0 }
+    };
+    // Keep a window of batches in flight: a pipelined stream, as actors send.
+    let (tx, rx) = tokio::sync::mpsc::channel::<pb::ExperienceBatch>(8);
+    let mut acks = client.stream_experience(tokio_stream::wrappers::ReceiverStream::new(rx)).await?.into_inner();
+    let deadline = Instant::now() + Duration::from_secs_f64(seconds);
+    let producer = tokio::spawn(async move {
+        let mut seq = 0u64;
+        while Instant::now() < deadline {
+            seq += 1;
+            if tx.send(make_batch(seq)).await.is_err() {
+                break;
+            }
+        }
+    });
+    let start_t = Instant::now();
+    let mut stored = 0u64;
+    while let Some(ack) = acks.message().await.context("reading acknowledgements")? {
+        stored += u64::from(ack.stored);
+        if Instant::now() >= deadline {
+            break;
+        }
+    }
+    let secs = start_t.elapsed().as_secs_f64();
+    producer.abort();
+    drop(acks);
+    running.stop().await?;
+    let _ = std::fs::remove_dir_all(&dir);
+    let _ = std::fs::remove_file(&cfg_path);
+    if stored == 0 {
+        bail!("no transition was acknowledged");
+    }
+    Ok(serde_json::json!({ "transitions_per_sec": stored as f64 / secs }))
+}

@@ -1,0 +1,164 @@
+//! `learner`: the training service and its tools.
+
+use std::path::PathBuf;
+
+use anyhow::Result;
+use clap::{Parser, Subcommand};
+use learner::serve::{ServeOptions, read_token, serve};
+use learner::status;
+
+#[derive(Debug, Parser)]
+#[command(name = "learner", version, about = "The DQN training service: replay, training, checkpoints, weights for actors, status.")]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Run the training service until Ctrl-C or SIGTERM (then write a checkpoint and exit).
+    Serve {
+        /// Run configuration (TOML with [env], [agent], [service]); defaults when omitted.
+        #[arg(long)]
+        config: Option<PathBuf>,
+        /// gRPC listen address, host:port (overrides service.listen; port 0 picks a free one,
+        /// written to RUN_DIR/server.addr).
+        #[arg(long)]
+        listen: Option<String>,
+        /// Run directory for the effective config, checkpoints and metrics (overrides
+        /// service.run_dir).
+        #[arg(long)]
+        run_dir: Option<PathBuf>,
+        /// Continue the run in --run-dir from its checkpoint: same counters, weights and optimizer.
+        #[arg(long)]
+        resume: bool,
+        /// Serve Prometheus metrics over HTTP at this address, host:port.
+        #[arg(long)]
+        metrics_listen: Option<String>,
+        /// Require this shared token (first line of the file) from every client.
+        #[arg(long)]
+        auth_token_file: Option<PathBuf>,
+    },
+    /// Print a learner's status.
+    Status {
+        /// The learner's address, host:port or http://host:port.
+        #[arg(long)]
+        addr: String,
+        /// Print one JSON object on the last line of stdout.
+        #[arg(long)]
+        json: bool,
+        /// Token file, if the learner requires one.
+        #[arg(long)]
+        auth_token_file: Option<PathBuf>,
+    },
+    /// Draw learning curves (normalised reward per episode like the paper's Figure 5, loss,
+    /// mean Q) of one or more run directories into a PNG.
+    Plot {
+        /// A run directory (repeat for several runs on one chart).
+        #[arg(long = "run-dir", required = true)]
+        run_dirs: Vec<PathBuf>,
+        /// Output PNG file.
+        #[arg(long)]
+        out: PathBuf,
+        /// Moving-average window, episodes.
+        #[arg(long, default_value_t = 50)]
+        smoothing: usize,
+    },
+    /// Benchmarks.
+    #[command(subcommand)]
+    Bench(BenchCommand),
+}
+
+#[derive(Debug, Subcommand)]
+enum BenchCommand {
+    /// Full DQN updates of the paper network: {"updates_per_sec","batch","input","ms_per_update"}.
+    Train {
+        /// Input image WIDTHxHEIGHTxCHANNELS.
+        #[arg(long, default_value = "84x84x3", value_parser = learner::bench::parse_input)]
+        input: (usize, usize, usize),
+        /// Transitions per update.
+        #[arg(long, default_value_t = 32)]
+        batch: usize,
+        /// Updates to time (after one warm-up update).
+        #[arg(long, default_value_t = 5)]
+        updates: usize,
+        /// Print one JSON object on the last line of stdout.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Transitions per second accepted over gRPC on loopback (84×84 gray): {"transitions_per_sec"}.
+    Ingest {
+        /// Seconds to stream.
+        #[arg(long, default_value_t = 5.0)]
+        seconds: f64,
+        /// Print one JSON object on the last line of stdout.
+        #[arg(long)]
+        json: bool,
+    },
+}
+
+/// Prints a benchmark result: JSON on the last line, or readable `key: value` lines.
+fn print_result(v: &serde_json::Value, json: bool) {
+    if json {
+        println!("{v}");
+    } else if let Some(map) = v.as_object() {
+        for (k, x) in map {
+            println!("{k}: {x}");
+        }
+    }
+}
+
+fn main() -> Result<()> {
+    tracing_subscriber::fmt()
+        .with_writer(std::io::stderr)
+        .with_env_filter(tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "info".into()))
+        .init();
+    let cli = Cli::parse();
+    let rt = tokio::runtime::Builder::new_multi_thread().worker_threads(2).enable_all().build()?;
+    rt.block_on(async move {
+        match cli.command {
+            Command::Serve { config, listen, run_dir, resume, metrics_listen, auth_token_file } => {
+                serve(ServeOptions { config, listen, run_dir, resume, metrics_listen, auth_token_file }).await
+            }
+            Command::Status { addr, json, auth_token_file } => {
+                let token = auth_token_file.as_deref().map(read_token).transpose()?;
+                let mut client = status::connect(&addr, token).await?;
+                let s = client.status(proto::v1::StatusRequest {}).await.map_err(|e| anyhow::anyhow!("status from {addr}: {}", e.message()))?.into_inner();
+                if json {
+                    println!("{}", status::to_json(&s));
+                } else {
+                    status::print_table(&s);
+                }
+                Ok(())
+            }
+            Command::Plot { run_dirs, out, smoothing } => {
+                if smoothing == 0 {
+                    anyhow::bail!("--smoothing must be at least 1 episode");
+                }
+                let opts = learner::plot::PlotOptions { smoothing, ..learner::plot::PlotOptions::default() };
+                let summary = learner::plot::plot_runs(&run_dirs, &out, &opts)?;
+                for r in &summary.runs {
+                    println!("{}: {} episodes, {} training records", r.name, r.episodes, r.train_points);
+                }
+                println!("wrote {}", out.display());
+                Ok(())
+            }
+            Command::Bench(BenchCommand::Train { input, batch, updates, json }) => {
+                if batch == 0 || updates == 0 {
+                    anyhow::bail!("--batch and --updates must be at least 1");
+                }
+                let v = tokio::task::spawn_blocking(move || learner::bench::train(input, batch, updates)).await??;
+                print_result(&v, json);
+                Ok(())
+            }
+            Command::Bench(BenchCommand::Ingest { seconds, json }) => {
+                if !(seconds > 0.0 && seconds.is_finite()) {
+                    anyhow::bail!("--seconds must be a positive number, not {seconds}");
+                }
+                let v = learner::bench::ingest(seconds).await?;
+                print_result(&v, json);
+                Ok(())
+            }
+        }
+    })
+}

@@ -1,0 +1,323 @@
+//! `learner serve`: loads or resumes a run, starts the training thread and the gRPC server
+//! (with health, reflection, optional token authentication), writes metrics, and on SIGINT or
+//! SIGTERM stops cleanly with a final checkpoint.
+
+use std::collections::VecDeque;
+use std::net::SocketAddr;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::Ordering;
+use std::sync::{Arc, Condvar, Mutex, RwLock};
+use std::time::{Duration, Instant};
+
+use anyhow::{Context, Result, bail};
+use candle_core::Device;
+use proto::v1::learner_server::LearnerServer;
+use tonic::codec::CompressionEncoding;
+
+use crate::checkpoint::{self, Counters};
+use crate::config::RunConfig;
+use crate::dqn::Dqn;
+use crate::metrics::{MetricsLog, serve_prometheus};
+use crate::net::{NetShape, to_safetensors};
+use crate::replay::{Replay, ReplayConfig};
+use crate::service::LearnerService;
+use crate::state::{PublishedWeights, Shared, TrainStats};
+
+/// Options of `learner serve`.
+#[derive(Debug, Clone, Default)]
+pub struct ServeOptions {
+    pub config: Option<PathBuf>,
+    pub listen: Option<String>,
+    pub run_dir: Option<PathBuf>,
+    pub resume: bool,
+    pub metrics_listen: Option<String>,
+    pub auth_token_file: Option<PathBuf>,
+}
+
+/// The network shape a configuration implies.
+#[must_use]
+pub fn net_shape(cfg: &RunConfig) -> NetShape {
+    let cam = cfg.env.camera.as_ref().expect("validated: a camera is configured");
+    NetShape {
+        height: cam.height as usize,
+        width: cam.width as usize,
+        channels: usize::from(cam.channels()),
+        scalars: cfg.scalar_inputs(),
+        actions: cfg.agent.action_set.actions().len(),
+        filters: cfg.agent.conv_filters,
+        hidden: cfg.agent.hidden,
+    }
+}
+
+/// Resolves `host:port` or `http://host:port` to a socket address.
+pub async fn resolve(addr: &str) -> Result<SocketAddr> {
+    let bare = addr.trim_start_matches("http://").trim_start_matches("https://").trim_end_matches('/');
+    tokio::net::lookup_host(bare)
+        .await
+        .with_context(|| format!("resolving address `{addr}` (expected host:port, e.g. 127.0.0.1:50051)"))?
+        .next()
+        .with_context(|| format!("address `{addr}` resolved to nothing"))
+}
+
+/// Reads a token file: its first line, trimmed; empty files are refused.
+pub fn read_token(path: &Path) -> Result<String> {
+    let text = std::fs::read_to_string(path).with_context(|| format!("reading auth token file {}", path.display()))?;
+    let token = text.lines().next().unwrap_or("").trim().to_owned();
+    if token.is_empty() {
+        bail!("auth token file {} is empty", path.display());
+    }
+    Ok(token)
+}
+
+/// Runs the service until SIGINT or SIGTERM, then stops it cleanly.
+pub async fn serve(opts: ServeOptions) -> Result<()> {
+    let running = start(opts).await?;
+    eprintln!("learner listening on {} (run {} in {})", running.addr, running.shared.run_id, running.run_dir.display());
+    shutdown_signal().await;
+    tracing::info!("stopping: finishing the current update and writing a checkpoint");
+    let run_dir = running.run_dir.clone();
+    let path = running.stop().await?;
+    eprintln!("checkpoint written to {}; resume with: learner serve --run-dir {} --resume", path.display(), run_dir.display());
+    Ok(())
+}
+
+/// A learner running in this process.
+#[derive(Debug)]
+pub struct Running {
+    /// The bound gRPC address.
+    pub addr: SocketAddr,
+    pub run_dir: PathBuf,
+    pub shared: Arc<Shared>,
+    stop_server: tokio::sync::oneshot::Sender<()>,
+    server: tokio::task::JoinHandle<Result<(), tonic::transport::Error>>,
+    trainer: std::thread::JoinHandle<Result<Dqn>>,
+}
+
+impl Running {
+    /// Stops serving, lets the training thread finish its update, writes the final checkpoint
+    /// and flushes the metrics. Returns the checkpoint's path.
+    pub async fn stop(self) -> Result<PathBuf> {
+        self.shared.shutdown.store(true, Ordering::SeqCst);
+        let _ = self.stop_server.send(());
+        self.server.await.context("joining the gRPC server")??;
+        let trainer = self.trainer;
+        let dqn = tokio::task::spawn_blocking(move || trainer.join()).await?.map_err(|_| anyhow::anyhow!("the training thread panicked"))??;
+        let path = crate::train::save_checkpoint(&self.shared, &dqn, &self.run_dir)?;
+        self.shared.metrics.interval(&self.shared)?;
+        Ok(path)
+    }
+}
+
+/// Starts the service: loads or resumes the run, starts training and serving.
+pub async fn start(opts: ServeOptions) -> Result<Running> {
+    let mut cfg = match &opts.config {
+        Some(p) => RunConfig::load(p)?,
+        None => RunConfig::default(),
+    };
+    if let Some(dir) = &opts.run_dir {
+        cfg.service.run_dir = dir.display().to_string();
+    }
+    let run_dir = PathBuf::from(&cfg.service.run_dir);
+    std::fs::create_dir_all(&run_dir).with_context(|| format!("creating run directory {}", run_dir.display()))?;
+    if opts.resume {
+        let text = checkpoint_config_text(&run_dir)?;
+        let from_ckpt = RunConfig::from_toml(&text, &format!("{}/checkpoint/config.toml", run_dir.display()))?;
+        if opts.config.is_some() && from_ckpt.env != cfg.env {
+            bail!("--config describes another environment than the checkpoint in {}: resume without --config, or start a new run directory", run_dir.display());
+        }
+        let service = cfg.service.clone();
+        cfg = from_ckpt;
+        cfg.service = service;
+    } else if checkpoint::exists(&run_dir) {
+        bail!("run directory {} already holds a checkpoint: pass --resume to continue it, or choose another --run-dir", run_dir.display());
+    }
+    if let Some(l) = &opts.listen {
+        cfg.service.listen = l.clone();
+    }
+    cfg.validate().map_err(|(field, message)| anyhow::anyhow!("config field `{field}`: {message}"))?;
+    let token = opts.auth_token_file.as_deref().map(read_token).transpose()?;
+
+    let shape = net_shape(&cfg);
+    let device = Device::Cpu;
+    let mut dqn = Dqn::new(shape, &cfg.agent, &device)?;
+    let mut counters = Counters::default();
+    if opts.resume {
+        let loaded = checkpoint::load(&run_dir, &mut dqn).with_context(|| format!("loading the checkpoint in {}", run_dir.display()))?;
+        counters = loaded.counters;
+        tracing::info!(learner_step = counters.learner_step, weights_version = counters.weights_version, "resumed");
+    } else {
+        counters.run_id = new_run_id();
+    }
+    std::fs::write(run_dir.join("config.toml"), cfg.to_toml()).with_context(|| format!("writing {}/config.toml", run_dir.display()))?;
+
+    let frame_bytes = shape.height * shape.width * shape.channels;
+    let a = &cfg.agent;
+    let replay = Replay::new(ReplayConfig {
+        capacity: a.replay_capacity,
+        max_bytes: a.replay_max_bytes,
+        frame_bytes,
+        gamma: a.gamma,
+        n_step: a.n_step,
+        prioritized: a.prioritized_replay,
+        alpha: a.priority_alpha,
+        beta: a.priority_beta,
+        seed: a.seed ^ counters.learner_step,
+    });
+    let weights = PublishedWeights { version: counters.weights_version.max(1), bytes: Arc::new(to_safetensors(&dqn.online_vars)?) };
+    counters.weights_version = weights.version;
+    let elapsed_before = counters.elapsed_secs;
+    let shared = Arc::new(Shared {
+        run_id: counters.run_id.clone(),
+        cfg: cfg.clone(),
+        started: Instant::now(),
+        shape,
+        frame_bytes,
+        replay: Mutex::new(replay),
+        counters: Mutex::new(counters),
+        weights: RwLock::new(weights),
+        actors: Mutex::new(Vec::new()),
+        recent_episodes: Mutex::new(VecDeque::new()),
+        stats: Mutex::new(TrainStats::default()),
+        metrics: MetricsLog::open(&run_dir).with_context(|| format!("opening metrics files in {}", run_dir.display()))?,
+        data_arrived: (Mutex::new(()), Condvar::new()),
+        shutdown: Default::default(),
+        elapsed_before,
+    });
+
+    // Training thread.
+    let trainer = {
+        let shared = shared.clone();
+        let run_dir = run_dir.clone();
+        std::thread::Builder::new().name("train".into()).spawn(move || crate::train::run(&shared, dqn, &run_dir))?
+    };
+
+    // Metrics: rates, train.jsonl, progress in the log, Prometheus.
+    tokio::spawn(report_loop(shared.clone()));
+    if let Some(m) = &opts.metrics_listen {
+        let addr = resolve(m).await?;
+        let listener = tokio::net::TcpListener::bind(addr).await.with_context(|| format!("binding metrics address {addr}"))?;
+        tracing::info!(addr = %listener.local_addr()?, "Prometheus metrics at http://{}/metrics", listener.local_addr()?);
+        tokio::spawn(serve_prometheus(listener, shared.clone()));
+    }
+
+    // gRPC.
+    let addr = resolve(&cfg.service.listen).await?;
+    let listener = tokio::net::TcpListener::bind(addr).await.with_context(|| format!("binding gRPC address {addr} (service.listen / --listen)"))?;
+    let bound = listener.local_addr()?;
+    std::fs::write(run_dir.join("server.addr"), bound.to_string())?;
+    let max = cfg.service.max_message_bytes;
+    let server = LearnerServer::new(LearnerService { shared: shared.clone() })
+        .max_decoding_message_size(max)
+        .max_encoding_message_size(max)
+        .accept_compressed(CompressionEncoding::Zstd)
+        .send_compressed(CompressionEncoding::Zstd);
+    let svc = tonic::service::interceptor::InterceptedService::new(server, auth_interceptor(token));
+    let (health_reporter, health) = tonic_health::server::health_reporter();
+    health_reporter.set_serving::<LearnerServer<LearnerService>>().await;
+    let reflection = tonic_reflection::server::Builder::configure()
+        .register_encoded_file_descriptor_set(proto::v1::FILE_DESCRIPTOR_SET)
+        .register_encoded_file_descriptor_set(tonic_health::pb::FILE_DESCRIPTOR_SET)
+        .build_v1()?;
+    tracing::info!(addr = %bound, run_dir = %run_dir.display(), run_id = %shared.run_id, "learner listening");
+    let incoming = tokio_stream::wrappers::TcpListenerStream::new(listener);
+    let (stop_server, stopped) = tokio::sync::oneshot::channel::<()>();
+    let server = tokio::spawn(tonic::transport::Server::builder().add_service(health).add_service(reflection).add_service(svc).serve_with_incoming_shutdown(
+        incoming,
+        async move {
+            let _ = stopped.await;
+        },
+    ));
+    Ok(Running { addr: bound, run_dir, shared, stop_server, server, trainer })
+}
+
+/// The configuration saved with the checkpoint of `run_dir` (verified again, with everything else,
+/// when the checkpoint is loaded).
+fn checkpoint_config_text(run_dir: &Path) -> Result<String> {
+    for dir in ["checkpoint", "checkpoint.old"] {
+        let p = run_dir.join(dir).join("config.toml");
+        if p.exists() {
+            return std::fs::read_to_string(&p).with_context(|| format!("reading {}", p.display()));
+        }
+    }
+    bail!("--resume: run directory {} holds no checkpoint (expected {}/checkpoint/)", run_dir.display(), run_dir.display())
+}
+
+/// A run id: time-based, unique enough to tell runs apart.
+fn new_run_id() -> String {
+    let t = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).unwrap_or_default();
+    format!("run-{}-{:04x}", t.as_secs(), (t.subsec_nanos() >> 8) & 0xffff)
+}
+
+/// Refuses calls without the shared token (when one is configured).
+#[allow(clippy::result_large_err)]
+fn auth_interceptor(token: Option<String>) -> impl Fn(tonic::Request<()>) -> Result<tonic::Request<()>, tonic::Status> + Clone {
+    let expected = token.map(|t| format!("Bearer {t}"));
+    move |req: tonic::Request<()>| {
+        let Some(expected) = &expected else { return Ok(req) };
+        match req.metadata().get("authorization").and_then(|v| v.to_str().ok()) {
+            Some(v) if v == expected => Ok(req),
+            Some(_) => Err(tonic::Status::unauthenticated("wrong auth token")),
+            None => Err(tonic::Status::unauthenticated("this learner requires an auth token: send `authorization: Bearer TOKEN`")),
+        }
+    }
+}
+
+/// Resolves on SIGINT (Ctrl-C) or SIGTERM.
+pub async fn shutdown_signal() {
+    let ctrl_c = tokio::signal::ctrl_c();
+    #[cfg(unix)]
+    {
+        let mut term = tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate()).expect("installing the SIGTERM handler");
+        tokio::select! {
+            _ = ctrl_c => {}
+            _ = term.recv() => {}
+        }
+    }
+    #[cfg(not(unix))]
+    {
+        let _ = ctrl_c.await;
+    }
+}
+
+/// Every second: rates; every 10 s: a train.jsonl line and a progress log line.
+async fn report_loop(shared: Arc<Shared>) {
+    let mut last = (Instant::now(), 0u64, 0u64);
+    let mut tick = 0u64;
+    loop {
+        tokio::time::sleep(Duration::from_secs(1)).await;
+        if shared.stopping() {
+            return;
+        }
+        let (updates, steps) = {
+            let c = shared.counters.lock().expect("counters lock");
+            (c.learner_step, c.env_steps)
+        };
+        let dt = last.0.elapsed().as_secs_f64().max(1e-3);
+        {
+            let mut s = shared.stats.lock().expect("stats lock");
+            s.updates_per_sec = 0.7 * s.updates_per_sec + 0.3 * updates.saturating_sub(last.1) as f64 / dt;
+            s.env_steps_per_sec = 0.7 * s.env_steps_per_sec + 0.3 * steps.saturating_sub(last.2) as f64 / dt;
+            s.epsilon = f64::from(shared.scheduled_epsilon(steps));
+        }
+        last = (Instant::now(), updates, steps);
+        tick += 1;
+        if tick % 10 == 0 {
+            if let Err(err) = shared.metrics.interval(&shared) {
+                tracing::warn!(%err, "writing train.jsonl");
+            }
+            let st = crate::service::status(&shared);
+            let ep = st.episodes.unwrap_or_default();
+            tracing::info!(
+                env_steps = steps,
+                episodes = ep.episodes_total,
+                mean_return = format!("{:.2}", ep.mean_return),
+                updates = updates,
+                updates_per_sec = format!("{:.1}", st.updates_per_sec),
+                weights_version = st.weights_version,
+                replay = st.replay_size,
+                actors = st.actors.iter().filter(|a| a.connected).count(),
+                "progress"
+            );
+        }
+    }
+}

@@ -1,0 +1,115 @@
+//! The learner's shared state: what the gRPC handlers, the training thread and the status
+//! reporting all see. Locks are held briefly and never across an update or an await.
+
+use std::collections::VecDeque;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Condvar, Mutex, RwLock};
+use std::time::Instant;
+
+use crate::checkpoint::Counters;
+use crate::config::RunConfig;
+use crate::metrics::MetricsLog;
+use crate::net::NetShape;
+use crate::replay::Replay;
+
+/// A published version of the online network's weights.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PublishedWeights {
+    pub version: u64,
+    /// A safetensors file.
+    pub bytes: Arc<Vec<u8>>,
+}
+
+/// An actor the learner knows.
+#[derive(Debug, Clone)]
+pub struct ActorRecord {
+    pub id: String,
+    pub name: String,
+    pub index: u32,
+    pub envs: u32,
+    pub last_seen: Instant,
+    pub weights_version: u64,
+    pub transitions: u64,
+    pub rejected_batches: u64,
+    pub epsilon: f32,
+    pub dropped_steps: u64,
+}
+
+/// A finished episode, for the rolling statistics.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct EpisodeOutcome {
+    pub episode_return: f64,
+    pub arrived: bool,
+    pub collided: bool,
+}
+
+/// Training measurements for status and metrics.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct TrainStats {
+    pub loss: Option<f64>,
+    pub mean_q: Option<f64>,
+    pub updates_per_sec: f64,
+    pub env_steps_per_sec: f64,
+    pub epsilon: f64,
+}
+
+/// Everything shared between the server's tasks and the training thread.
+#[derive(Debug)]
+pub struct Shared {
+    pub cfg: RunConfig,
+    pub run_id: String,
+    pub started: Instant,
+    pub shape: NetShape,
+    pub frame_bytes: usize,
+    pub replay: Mutex<Replay>,
+    pub counters: Mutex<Counters>,
+    pub weights: RwLock<PublishedWeights>,
+    pub actors: Mutex<Vec<ActorRecord>>,
+    pub recent_episodes: Mutex<VecDeque<EpisodeOutcome>>,
+    pub stats: Mutex<TrainStats>,
+    pub metrics: MetricsLog,
+    /// Wakes the training thread when transitions arrive.
+    pub data_arrived: (Mutex<()>, Condvar),
+    pub shutdown: AtomicBool,
+    /// Seconds of earlier sessions of this run (from the checkpoint), for `time_secs` in metrics.
+    pub elapsed_before: f64,
+}
+
+impl Shared {
+    /// Seconds since the run began, across resumes.
+    #[must_use]
+    pub fn run_secs(&self) -> f64 {
+        self.elapsed_before + self.started.elapsed().as_secs_f64()
+    }
+
+    /// Whether shutdown was requested.
+    #[must_use]
+    pub fn stopping(&self) -> bool {
+        self.shutdown.load(Ordering::SeqCst)
+    }
+
+    /// The newest weights.
+    #[must_use]
+    pub fn current_weights(&self) -> PublishedWeights {
+        self.weights.read().expect("weights lock").clone()
+    }
+
+    /// Records finished episodes in the rolling window.
+    pub fn push_episodes(&self, outcomes: impl IntoIterator<Item = EpisodeOutcome>) {
+        let mut q = self.recent_episodes.lock().expect("episodes lock");
+        for o in outcomes {
+            q.push_back(o);
+            while q.len() > self.cfg.service.stats_window {
+                q.pop_front();
+            }
+        }
+    }
+
+    /// The exploration rate of the configured schedule after `env_steps` steps.
+    #[must_use]
+    pub fn scheduled_epsilon(&self, env_steps: u64) -> f32 {
+        let a = &self.cfg.agent;
+        let frac = (env_steps as f32 / a.epsilon_decay_steps.max(1) as f32).min(1.0);
+        a.epsilon_start + (a.epsilon_end - a.epsilon_start) * frac
+    }
+}

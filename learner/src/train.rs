@@ -1,0 +1,129 @@
+//! The training thread: decoupled from ingestion, it trains as fast as the replay ratio allows
+//! (samples trained per transition inserted), publishes weights every few updates and writes
+//! checkpoints on an interval.
+
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use candle_core::{DType, Device, Tensor};
+
+use crate::checkpoint;
+use crate::config::RunConfig;
+use crate::dqn::{Batch, Dqn};
+use crate::net::{NetShape, images_tensor, to_safetensors};
+use crate::replay::Sample;
+use crate::state::{PublishedWeights, Shared};
+
+/// The network's scalar inputs from an observation's speed (m/s) and d (m): speed/v0, and d/d0
+/// for the hybrid agent — scaled so that typical values are near 1.
+#[must_use]
+pub fn scalar_features(cfg: &RunConfig, speed: f32, d: f32) -> Vec<f32> {
+    let r = &cfg.env.reward;
+    match cfg.env.variant {
+        sim_core::config::Variant::Hybrid => vec![speed / r.v0(), d / r.d0],
+        sim_core::config::Variant::EndToEnd => vec![speed / r.v0()],
+    }
+}
+
+/// Turns sampled transitions into tensors.
+pub fn make_batch(cfg: &RunConfig, shape: &NetShape, s: &Sample, device: &Device) -> candle_core::Result<Batch> {
+    let n = s.actions.len();
+    let fb = shape.height * shape.width * shape.channels;
+    let frames = |bytes: &[u8]| -> candle_core::Result<Tensor> {
+        let refs: Vec<&[u8]> = bytes.chunks_exact(fb).collect();
+        images_tensor(&refs, shape, device)
+    };
+    let scalars = |sc: &[[f32; 2]]| -> candle_core::Result<Tensor> {
+        let v: Vec<f32> = sc.iter().flat_map(|x| scalar_features(cfg, x[0], x[1])).collect();
+        Tensor::from_vec(v, (n, shape.scalars), device)
+    };
+    Ok(Batch {
+        images: frames(&s.images)?,
+        scalars: scalars(&s.scalars)?,
+        actions: Tensor::from_slice(&s.actions, n, device)?,
+        rewards: Tensor::from_slice(&s.rewards, n, device)?,
+        next_images: frames(&s.next_images)?,
+        next_scalars: scalars(&s.next_scalars)?,
+        discounts: Tensor::from_slice(&s.discounts, n, device)?,
+        weights: Tensor::from_slice(&s.weights, n, device)?.to_dtype(DType::F32)?,
+    })
+}
+
+/// Publishes the online weights as a new version.
+pub fn publish(shared: &Shared, dqn: &Dqn) -> anyhow::Result<u64> {
+    let bytes = to_safetensors(&dqn.online_vars)?;
+    let mut w = shared.weights.write().expect("weights lock");
+    let version = w.version + 1;
+    *w = PublishedWeights { version, bytes: Arc::new(bytes) };
+    drop(w);
+    shared.counters.lock().expect("counters lock").weights_version = version;
+    Ok(version)
+}
+
+/// Writes a checkpoint of the current state.
+pub fn save_checkpoint(shared: &Shared, dqn: &Dqn, run_dir: &std::path::Path) -> anyhow::Result<PathBuf> {
+    let mut counters = shared.counters.lock().expect("counters lock").clone();
+    counters.learner_step = dqn.updates;
+    counters.elapsed_secs = shared.run_secs();
+    Ok(checkpoint::save(run_dir, dqn, &counters, &shared.cfg.to_toml())?)
+}
+
+/// Runs until shutdown is requested; returns the agent for the final checkpoint.
+pub fn run(shared: &Arc<Shared>, mut dqn: Dqn, run_dir: &std::path::Path) -> anyhow::Result<Dqn> {
+    let a = shared.cfg.agent.clone();
+    let interval = Duration::from_secs(shared.cfg.service.checkpoint_interval_secs.max(1));
+    let mut last_checkpoint = Instant::now();
+    let mut stored_at_fill: Option<u64> = None;
+    let updates_at_start = dqn.updates;
+    let mut loss_ema: Option<f64> = None;
+    let mut q_ema: Option<f64> = None;
+    while !shared.stopping() {
+        let (len, stored) = {
+            let r = shared.replay.lock().expect("replay lock");
+            let c = shared.counters.lock().expect("counters lock");
+            (r.len(), c.transitions_stored)
+        };
+        if len < a.min_replay {
+            wait_for_data(shared);
+            continue;
+        }
+        // Count from the moment the replay first reached its minimum in this session.
+        let fill = *stored_at_fill.get_or_insert(stored.saturating_sub(len as u64));
+        let allowed = ((stored - fill) as f64 * f64::from(a.replay_ratio) / a.batch_size as f64).floor() as u64;
+        if dqn.updates - updates_at_start >= allowed {
+            wait_for_data(shared);
+            continue;
+        }
+        let Some(sample) = shared.replay.lock().expect("replay lock").sample(a.batch_size) else { continue };
+        let batch = make_batch(&shared.cfg, &dqn.shape, &sample, &dqn.device)?;
+        let stats = dqn.update(&batch)?;
+        if a.prioritized_replay {
+            shared.replay.lock().expect("replay lock").update_priorities(&sample.slots, &stats.td_abs);
+        }
+        let smooth = |ema: Option<f64>, x: f32| Some(ema.map_or(f64::from(x), |e| 0.95 * e + 0.05 * f64::from(x)));
+        loss_ema = smooth(loss_ema, stats.loss);
+        q_ema = smooth(q_ema, stats.mean_q);
+        {
+            let mut s = shared.stats.lock().expect("stats lock");
+            s.loss = loss_ema;
+            s.mean_q = q_ema;
+        }
+        shared.counters.lock().expect("counters lock").learner_step = dqn.updates;
+        if dqn.updates % a.publish_every_updates == 0 {
+            publish(shared, &dqn)?;
+        }
+        if last_checkpoint.elapsed() >= interval {
+            let path = save_checkpoint(shared, &dqn, run_dir)?;
+            tracing::info!(path = %path.display(), learner_step = dqn.updates, "checkpoint written");
+            last_checkpoint = Instant::now();
+        }
+    }
+    Ok(dqn)
+}
+
+fn wait_for_data(shared: &Shared) {
+    let (lock, cv) = &shared.data_arrived;
+    let guard = lock.lock().expect("wait lock");
+    let _ = cv.wait_timeout(guard, Duration::from_millis(50)).expect("wait lock");
+}

@@ -1,0 +1,217 @@
+//! The learner service over real gRPC on 127.0.0.1:0, in one process: fake actors send good and
+//! bad batches; status, health, weights, authentication, stop and resume.
+
+use std::path::Path;
+use std::time::Duration;
+
+use learner::config::RunConfig;
+use learner::serve::{Running, ServeOptions, start};
+use proto::v1 as pb;
+use proto::v1::learner_client::LearnerClient;
+use sim_core::camera::CameraConfig;
+use tonic::Code;
+use tonic::transport::Channel;
+
+/// A tiny run: 16×16 gray camera, a small network, training after 32 transitions.
+fn tiny_config(run_dir: &Path) -> RunConfig {
+    let mut cfg = RunConfig::default();
+    cfg.env.camera = Some(CameraConfig { width: 16, height: 16, ..CameraConfig::default() });
+    cfg.agent.conv_filters = 2;
+    cfg.agent.hidden = 8;
+    cfg.agent.batch_size = 8;
+    cfg.agent.min_replay = 32;
+    cfg.agent.replay_capacity = 1000;
+    cfg.agent.replay_ratio = 1.0;
+    cfg.agent.publish_every_updates = 2;
+    cfg.service.listen = "127.0.0.1:0".into();
+    cfg.service.run_dir = run_dir.display().to_string();
+    cfg.service.checkpoint_interval_secs = 3600;
+    cfg
+}
+
+async fn start_tiny(dir: &Path, resume: bool, token: Option<&Path>) -> Running {
+    let cfg_path = dir.join("run.toml");
+    std::fs::write(&cfg_path, tiny_config(&dir.join("run")).to_toml()).unwrap();
+    start(ServeOptions { config: Some(cfg_path), resume, auth_token_file: token.map(Path::to_path_buf), ..ServeOptions::default() }).await.unwrap()
+}
+
+async fn client(r: &Running) -> LearnerClient<Channel> {
+    LearnerClient::connect(format!("http://{}", r.addr)).await.unwrap()
+}
+
+async fn register(c: &mut LearnerClient<Channel>, name: &str) -> pb::RegisterResponse {
+    c.register(pb::RegisterRequest { name: name.into(), envs: 2, protocol: 1 }).await.unwrap().into_inner()
+}
+
+/// `n` steps of one episode of env 0 starting at `t0` (t = 0 is the reset observation).
+fn steps(episode: u64, t0: u32, n: u32, image_bytes: usize) -> Vec<pb::Step> {
+    (t0..t0 + n)
+        .map(|t| pb::Step {
+            env: 0,
+            episode,
+            t,
+            obs: Some(pb::Observation { image: vec![(t * 7 % 256) as u8; image_bytes], speed: t as f32 * 0.5, d: 1.0 }),
+            action: t % 6,
+            reward: 0.1,
+            terminated: false,
+            truncated: false,
+        })
+        .collect()
+}
+
+fn batch(actor: &str, seq: u64, steps: Vec<pb::Step>) -> pb::ExperienceBatch {
+    pb::ExperienceBatch { actor_id: actor.into(), seq, steps, episodes: vec![], weights_version: 1, epsilon: 0.5, dropped_steps: 0 }
+}
+
+/// Sends batches on one stream; returns each batch's outcome (ack or error code and message).
+async fn send(c: &mut LearnerClient<Channel>, batches: Vec<pb::ExperienceBatch>) -> Vec<Result<pb::BatchAck, (Code, String)>> {
+    let n = batches.len();
+    let mut acks = c.stream_experience(tokio_stream::iter(batches)).await.unwrap().into_inner();
+    let mut out = Vec::new();
+    while out.len() < n {
+        match acks.message().await {
+            Ok(Some(a)) => out.push(Ok(a)),
+            Ok(None) => break,
+            Err(s) => {
+                out.push(Err((s.code(), s.message().to_owned())));
+                break;
+            }
+        }
+    }
+    out
+}
+
+async fn status(c: &mut LearnerClient<Channel>) -> pb::StatusResponse {
+    c.status(pb::StatusRequest {}).await.unwrap().into_inner()
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn good_batches_are_stored_bad_ones_refused_and_training_publishes_weights() {
+    let dir = tempfile::tempdir().unwrap();
+    let running = start_tiny(dir.path(), false, None).await;
+    let mut c = client(&running).await;
+    let good = register(&mut c, "good").await;
+    let bad = register(&mut c, "bad").await;
+    assert_eq!((good.actor_index, bad.actor_index), (0, 1));
+    assert!(good.env_config_toml.contains("variant = \"hybrid\""), "{}", good.env_config_toml);
+    let img = 16 * 16;
+
+    // Good: 41 steps (t = 0..=40) in two batches → 40 transitions.
+    let acks = send(&mut c, vec![batch(&good.actor_id, 1, steps(0, 0, 21, img)), batch(&good.actor_id, 2, steps(0, 21, 20, img))]).await;
+    assert_eq!(acks.iter().map(|a| a.as_ref().unwrap().stored).collect::<Vec<_>>(), vec![20, 20]);
+
+    // Bad batches, each on its own stream, each refused whole with a reason.
+    let mut wrong_size = steps(5, 0, 3, img);
+    wrong_size[2].obs.as_mut().unwrap().image.pop();
+    let mut wrong_action = steps(5, 0, 3, img);
+    wrong_action[1].action = 6;
+    let mut nan = steps(5, 0, 3, img);
+    nan[2].reward = f32::NAN;
+    let cases: Vec<(Vec<pb::Step>, Code, &str)> = vec![
+        (wrong_size, Code::InvalidArgument, "image has 255 bytes; this run's camera is 16x16x1 = 256 bytes"),
+        (wrong_action, Code::InvalidArgument, "action 6 is out of range 0..6"),
+        (nan, Code::InvalidArgument, "reward is NaN"),
+        (steps(5, 0, 5000, img), Code::ResourceExhausted, "5000 steps; at most 4096"),
+    ];
+    for (k, (s, code, text)) in cases.into_iter().enumerate() {
+        let out = send(&mut c, vec![batch(&bad.actor_id, k as u64, s)]).await;
+        let (got, msg) = out[0].as_ref().expect_err("refused");
+        assert_eq!(*got, code, "{msg}");
+        assert!(msg.contains(text), "{msg}");
+    }
+    // Unknown actor.
+    let out = send(&mut c, vec![batch("nobody", 1, steps(0, 0, 2, img))]).await;
+    assert_eq!(out[0].as_ref().unwrap_err().0, Code::FailedPrecondition);
+
+    // The good actor is unaffected, and its transitions fill the replay to the training minimum.
+    let acks = send(&mut c, vec![batch(&good.actor_id, 3, steps(0, 41, 30, img))]).await;
+    assert_eq!(acks[0].as_ref().unwrap().stored, 30);
+
+    // Training starts (70 stored ≥ 32) and publishes weights every 2 updates.
+    let mut st = status(&mut c).await;
+    for _ in 0..200 {
+        if st.weights_version > 1 {
+            break;
+        }
+        tokio::time::sleep(Duration::from_millis(50)).await;
+        st = status(&mut c).await;
+    }
+    assert!(st.weights_version > 1, "weights published: {st:?}");
+    assert!(st.learner_step >= 2);
+    assert_eq!((st.transitions_stored, st.replay_size), (70, 70));
+    assert_eq!(st.batches_rejected, 4, "four invalid batches (the unknown actor is refused before validation)");
+    assert_eq!(st.transitions_rejected, 2 + 2 + 2 + 4999);
+    let by_name = |n: &str| st.actors.iter().find(|a| a.name == n).unwrap().clone();
+    assert_eq!((by_name("good").transitions, by_name("good").rejected_batches), (70, 0));
+    assert_eq!((by_name("bad").transitions, by_name("bad").rejected_batches), (0, 4));
+    assert!(by_name("good").connected);
+    assert_eq!(st.variant, "hybrid");
+
+    // Weights: the newest when behind, nothing when up to date.
+    let w = c.get_weights(pb::GetWeightsRequest { actor_id: good.actor_id.clone(), have_version: 0 }).await.unwrap().into_inner();
+    assert!(w.version > 1 && w.safetensors.len() > 1000);
+    let same = c.get_weights(pb::GetWeightsRequest { actor_id: good.actor_id.clone(), have_version: w.version }).await.unwrap().into_inner();
+    assert!(same.safetensors.is_empty());
+
+    // Health: SERVING.
+    let mut health = tonic_health::pb::health_client::HealthClient::connect(format!("http://{}", running.addr)).await.unwrap();
+    let h = health.check(tonic_health::pb::HealthCheckRequest { service: "hybriddrive.v1.Learner".into() }).await.unwrap().into_inner();
+    assert_eq!(h.status(), tonic_health::pb::health_check_response::ServingStatus::Serving);
+
+    // Stop: a checkpoint and the effective config are in the run directory.
+    let path = running.stop().await.unwrap();
+    assert!(path.join("manifest.json").exists());
+    assert!(dir.path().join("run/config.toml").exists());
+    let episodes = std::fs::read_to_string(dir.path().join("run/train.jsonl")).unwrap();
+    assert!(episodes.lines().count() >= 1);
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn resume_continues_the_counters_and_weights() {
+    let dir = tempfile::tempdir().unwrap();
+    let running = start_tiny(dir.path(), false, None).await;
+    let mut c = client(&running).await;
+    let a = register(&mut c, "a").await;
+    send(&mut c, vec![batch(&a.actor_id, 1, steps(0, 0, 60, 256))]).await;
+    let mut st = status(&mut c).await;
+    for _ in 0..200 {
+        if st.learner_step >= 4 {
+            break;
+        }
+        tokio::time::sleep(Duration::from_millis(50)).await;
+        st = status(&mut c).await;
+    }
+    let run_id = st.run_id.clone();
+    running.stop().await.unwrap();
+
+    // Starting again without --resume refuses to overwrite the run.
+    let cfg_path = dir.path().join("run.toml");
+    let err = start(ServeOptions { config: Some(cfg_path.clone()), ..ServeOptions::default() }).await.unwrap_err();
+    assert!(err.to_string().contains("already holds a checkpoint: pass --resume"), "{err}");
+
+    let again = start_tiny(dir.path(), true, None).await;
+    let mut c = client(&again).await;
+    let st2 = status(&mut c).await;
+    assert_eq!(st2.run_id, run_id);
+    // The final checkpoint holds every update done before the stop, at least those seen above.
+    assert!(st2.learner_step >= st.learner_step && st2.learner_step >= 4, "{} after {}", st2.learner_step, st.learner_step);
+    assert_eq!(st2.transitions_stored, 59);
+    assert!(st2.weights_version >= st.weights_version);
+    again.stop().await.unwrap();
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_token_is_required_when_configured() {
+    let dir = tempfile::tempdir().unwrap();
+    let token = dir.path().join("token");
+    std::fs::write(&token, "s3cret\n").unwrap();
+    let running = start_tiny(dir.path(), false, Some(&token)).await;
+    let mut c = client(&running).await;
+    let err = c.status(pb::StatusRequest {}).await.unwrap_err();
+    assert_eq!(err.code(), Code::Unauthenticated);
+    let mut authed = learner::status::connect(&running.addr.to_string(), Some("s3cret".into())).await.unwrap();
+    assert!(authed.status(pb::StatusRequest {}).await.is_ok());
+    let mut wrong = learner::status::connect(&running.addr.to_string(), Some("nope".into())).await.unwrap();
+    assert_eq!(wrong.status(pb::StatusRequest {}).await.unwrap_err().code(), Code::Unauthenticated);
+    running.stop().await.unwrap();
+}
