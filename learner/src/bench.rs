@@ -76,7 +76,8 @@ pub async fn ingest(seconds: f64) -> Result<serde_json::Value> {
     std::fs::write(&cfg_path, cfg.to_toml())?;
     let running = start(ServeOptions { config: Some(cfg_path.clone()), ..ServeOptions::default() }).await?;
     let mut client = crate::status::connect(&running.addr.to_string(), None).await?;
-    let reg = client.register(pb::RegisterRequest { name: "bench".into(), envs: 1, protocol: crate::service::PROTOCOL }).await?.into_inner();
+    let reg =
+        client.register(pb::RegisterRequest { name: "bench".into(), envs: 1, protocol: crate::service::PROTOCOL }).await?.into_inner();
     let frame = vec![100u8; 84 * 84];
     let actor_id = reg.actor_id.clone();
     let (mut episode, mut t) = (0u64, 0u32);

@@ -1,2 +1,17 @@
-//! The learner: replay buffer, DQN training, checkpoints, weight broadcast and status. It arrives
-//! with the learner service issue; the crate exists now so that the workspace has its final shape.
+//! The learner: replay buffer, DQN training with candle, checkpoints, weight broadcast, status and
+//! metrics. The Q-network definition (`net`) is shared with the actor, which links this library
+//! for inference.
+
+pub mod bench;
+pub mod checkpoint;
+pub mod config;
+pub mod dqn;
+pub mod metrics;
+pub mod net;
+pub mod plot;
+pub mod replay;
+pub mod serve;
+pub mod service;
+pub mod state;
+pub mod status;
+pub mod train;

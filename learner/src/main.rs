@@ -64,6 +64,13 @@ enum Command {
         #[arg(long, default_value_t = 50)]
         smoothing: usize,
     },
+    /// Print the effective configuration as TOML: the defaults, or FILE completed with defaults
+    /// and validated (a starting point for `serve --config`).
+    Config {
+        /// A configuration file to validate and complete.
+        #[arg(long)]
+        config: Option<PathBuf>,
+    },
     /// Benchmarks.
     #[command(subcommand)]
     Bench(BenchCommand),
@@ -123,12 +130,24 @@ fn main() -> Result<()> {
             Command::Status { addr, json, auth_token_file } => {
                 let token = auth_token_file.as_deref().map(read_token).transpose()?;
                 let mut client = status::connect(&addr, token).await?;
-                let s = client.status(proto::v1::StatusRequest {}).await.map_err(|e| anyhow::anyhow!("status from {addr}: {}", e.message()))?.into_inner();
+                let s = client
+                    .status(proto::v1::StatusRequest {})
+                    .await
+                    .map_err(|e| anyhow::anyhow!("status from {addr}: {}", e.message()))?
+                    .into_inner();
                 if json {
                     println!("{}", status::to_json(&s));
                 } else {
                     status::print_table(&s);
                 }
+                Ok(())
+            }
+            Command::Config { config } => {
+                let cfg = match config {
+                    Some(p) => learner::config::RunConfig::load(&p)?,
+                    None => learner::config::RunConfig::default(),
+                };
+                print!("{}", cfg.to_toml());
                 Ok(())
             }
             Command::Plot { run_dirs, out, smoothing } => {

@@ -120,7 +120,10 @@ pub async fn serve_prometheus(listener: tokio::net::TcpListener, shared: std::sy
             let mut buf = [0u8; 2048];
             let _ = tokio::time::timeout(std::time::Duration::from_secs(2), sock.read(&mut buf)).await;
             let body = prometheus_text(&shared);
-            let head = format!("HTTP/1.1 200 OK\r\nContent-Type: text/plain; version=0.0.4\r\nContent-Length: {}\r\nConnection: close\r\n\r\n", body.len());
+            let head = format!(
+                "HTTP/1.1 200 OK\r\nContent-Type: text/plain; version=0.0.4\r\nContent-Length: {}\r\nConnection: close\r\n\r\n",
+                body.len()
+            );
             let _ = sock.write_all(head.as_bytes()).await;
             let _ = sock.write_all(body.as_bytes()).await;
             let _ = sock.shutdown().await;

@@ -23,6 +23,10 @@ use crate::replay::{Replay, ReplayConfig};
 use crate::service::LearnerService;
 use crate::state::{PublishedWeights, Shared, TrainStats};
 
+/// HTTP/2 flow-control windows, bytes (server and clients).
+pub const STREAM_WINDOW: u32 = 8 << 20;
+pub const CONNECTION_WINDOW: u32 = 16 << 20;
+
 /// Options of `learner serve`.
 #[derive(Debug, Clone, Default)]
 pub struct ServeOptions {
@@ -101,7 +105,8 @@ impl Running {
         let _ = self.stop_server.send(());
         self.server.await.context("joining the gRPC server")??;
         let trainer = self.trainer;
-        let dqn = tokio::task::spawn_blocking(move || trainer.join()).await?.map_err(|_| anyhow::anyhow!("the training thread panicked"))??;
+        let dqn =
+            tokio::task::spawn_blocking(move || trainer.join()).await?.map_err(|_| anyhow::anyhow!("the training thread panicked"))??;
         let path = crate::train::save_checkpoint(&self.shared, &dqn, &self.run_dir)?;
         self.shared.metrics.interval(&self.shared)?;
         Ok(path)
@@ -123,7 +128,10 @@ pub async fn start(opts: ServeOptions) -> Result<Running> {
         let text = checkpoint_config_text(&run_dir)?;
         let from_ckpt = RunConfig::from_toml(&text, &format!("{}/checkpoint/config.toml", run_dir.display()))?;
         if opts.config.is_some() && from_ckpt.env != cfg.env {
-            bail!("--config describes another environment than the checkpoint in {}: resume without --config, or start a new run directory", run_dir.display());
+            bail!(
+                "--config describes another environment than the checkpoint in {}: resume without --config, or start a new run directory",
+                run_dir.display()
+            );
         }
         let service = cfg.service.clone();
         cfg = from_ckpt;
@@ -202,7 +210,8 @@ pub async fn start(opts: ServeOptions) -> Result<Running> {
 
     // gRPC.
     let addr = resolve(&cfg.service.listen).await?;
-    let listener = tokio::net::TcpListener::bind(addr).await.with_context(|| format!("binding gRPC address {addr} (service.listen / --listen)"))?;
+    let listener =
+        tokio::net::TcpListener::bind(addr).await.with_context(|| format!("binding gRPC address {addr} (service.listen / --listen)"))?;
     let bound = listener.local_addr()?;
     std::fs::write(run_dir.join("server.addr"), bound.to_string())?;
     let max = cfg.service.max_message_bytes;
@@ -221,12 +230,19 @@ pub async fn start(opts: ServeOptions) -> Result<Running> {
     tracing::info!(addr = %bound, run_dir = %run_dir.display(), run_id = %shared.run_id, "learner listening");
     let incoming = tokio_stream::wrappers::TcpListenerStream::new(listener);
     let (stop_server, stopped) = tokio::sync::oneshot::channel::<()>();
-    let server = tokio::spawn(tonic::transport::Server::builder().add_service(health).add_service(reflection).add_service(svc).serve_with_incoming_shutdown(
-        incoming,
-        async move {
-            let _ = stopped.await;
-        },
-    ));
+    // Batches of frames are large: HTTP/2's default 64 KiB flow-control window would stall each
+    // one on window updates.
+    let server = tokio::spawn(
+        tonic::transport::Server::builder()
+            .initial_stream_window_size(Some(STREAM_WINDOW))
+            .initial_connection_window_size(Some(CONNECTION_WINDOW))
+            .add_service(health)
+            .add_service(reflection)
+            .add_service(svc)
+            .serve_with_incoming_shutdown(incoming, async move {
+                let _ = stopped.await;
+            }),
+    );
     Ok(Running { addr: bound, run_dir, shared, stop_server, server, trainer })
 }
 
@@ -301,7 +317,7 @@ async fn report_loop(shared: Arc<Shared>) {
         }
         last = (Instant::now(), updates, steps);
         tick += 1;
-        if tick % 10 == 0 {
+        if tick.is_multiple_of(10) {
             if let Err(err) = shared.metrics.interval(&shared) {
                 tracing::warn!(%err, "writing train.jsonl");
             }

@@ -33,7 +33,10 @@ impl Learner for LearnerService {
     async fn register(&self, req: Request<pb::RegisterRequest>) -> Result<Response<pb::RegisterResponse>, Status> {
         let r = req.into_inner();
         if r.protocol != PROTOCOL {
-            return Err(Status::failed_precondition(format!("protocol {} is not supported: this learner speaks protocol {PROTOCOL}", r.protocol)));
+            return Err(Status::failed_precondition(format!(
+                "protocol {} is not supported: this learner speaks protocol {PROTOCOL}",
+                r.protocol
+            )));
         }
         if r.envs == 0 || r.envs > 4096 {
             return Err(Status::invalid_argument(format!("envs = {} must be 1..=4096", r.envs)));
@@ -163,7 +166,10 @@ fn validate(shared: &Shared, b: &pb::ExperienceBatch) -> Result<(), Reject> {
     }
     for (i, e) in b.episodes.iter().enumerate() {
         if !e.episode_return.is_finite() {
-            return Err(Reject::Invalid(format!("batch {} episode summary {i}: return is {}, not a finite number", b.seq, e.episode_return)));
+            return Err(Reject::Invalid(format!(
+                "batch {} episode summary {i}: return is {}, not a finite number",
+                b.seq, e.episode_return
+            )));
         }
     }
     if !(b.epsilon.is_finite() && (0.0..=1.0).contains(&b.epsilon)) {

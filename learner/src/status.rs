@@ -16,10 +16,14 @@ pub async fn connect(addr: &str, token: Option<String>) -> Result<Client> {
     let channel = Endpoint::from_shared(url.clone())
         .with_context(|| format!("`{addr}` is not a valid address (expected host:port)"))?
         .connect_timeout(std::time::Duration::from_secs(5))
+        .initial_stream_window_size(Some(crate::serve::STREAM_WINDOW))
+        .initial_connection_window_size(Some(crate::serve::CONNECTION_WINDOW))
         .connect()
         .await
         .with_context(|| format!("connecting to the learner at {url}"))?;
-    Ok(LearnerClient::with_interceptor(channel, TokenInterceptor(token)).max_decoding_message_size(256 << 20).max_encoding_message_size(256 << 20))
+    Ok(LearnerClient::with_interceptor(channel, TokenInterceptor(token))
+        .max_decoding_message_size(256 << 20)
+        .max_encoding_message_size(256 << 20))
 }
 
 /// Adds `authorization: Bearer TOKEN` to every call when a token is set.
@@ -29,7 +33,9 @@ pub struct TokenInterceptor(pub Option<String>);
 impl tonic::service::Interceptor for TokenInterceptor {
     fn call(&mut self, mut req: tonic::Request<()>) -> Result<tonic::Request<()>, tonic::Status> {
         if let Some(t) = &self.0 {
-            let v = format!("Bearer {t}").parse().map_err(|_| tonic::Status::invalid_argument("the auth token has characters not allowed in a header"))?;
+            let v = format!("Bearer {t}")
+                .parse()
+                .map_err(|_| tonic::Status::invalid_argument("the auth token has characters not allowed in a header"))?;
             req.metadata_mut().insert("authorization", v);
         }
         Ok(req)
@@ -84,7 +90,10 @@ pub fn to_json(s: &pb::StatusResponse) -> serde_json::Value {
 pub fn print_table(s: &pb::StatusResponse) {
     let ep = s.episodes.unwrap_or_default();
     println!("run {} ({}), up {:.0} s", s.run_id, s.variant, s.uptime_secs);
-    println!("learner step {}   weights version {}   updates/s {:.2}   env steps/s {:.0}", s.learner_step, s.weights_version, s.updates_per_sec, s.env_steps_per_sec);
+    println!(
+        "learner step {}   weights version {}   updates/s {:.2}   env steps/s {:.0}",
+        s.learner_step, s.weights_version, s.updates_per_sec, s.env_steps_per_sec
+    );
     println!("loss {:.4}   mean Q {:.3}   epsilon {:.3}", s.loss, s.mean_q, s.epsilon);
     println!(
         "replay {}/{} transitions, {:.1} MiB   received {}   stored {}   rejected {} ({} batches)",
@@ -104,7 +113,10 @@ pub fn print_table(s: &pb::StatusResponse) {
         100.0 * ep.completion_rate,
         100.0 * ep.collision_rate
     );
-    println!("{:<34} {:<12} {:>5} {:>9} {:>10} {:>7} {:>12} {:>8}", "actor", "name", "index", "connected", "last seen", "lag", "transitions", "rejected");
+    println!(
+        "{:<34} {:<12} {:>5} {:>9} {:>10} {:>7} {:>12} {:>8}",
+        "actor", "name", "index", "connected", "last seen", "lag", "transitions", "rejected"
+    );
     for a in &s.actors {
         println!(
             "{:<34} {:<12} {:>5} {:>9} {:>9.1}s {:>7} {:>12} {:>8}",

@@ -110,7 +110,7 @@ pub fn run(shared: &Arc<Shared>, mut dqn: Dqn, run_dir: &std::path::Path) -> any
             s.mean_q = q_ema;
         }
         shared.counters.lock().expect("counters lock").learner_step = dqn.updates;
-        if dqn.updates % a.publish_every_updates == 0 {
+        if dqn.updates.is_multiple_of(a.publish_every_updates) {
             publish(shared, &dqn)?;
         }
         if last_checkpoint.elapsed() >= interval {

@@ -1,0 +1,763 @@
+//! Checkpoints: the whole learner state in `RUN_DIR/checkpoint/`, replaced atomically.
+//!
+//! Files (format version [`FORMAT_VERSION`]):
+//! - `online.safetensors`, `target.safetensors`: the parameters of the two networks
+//!   ([`net::to_safetensors`]);
+//! - `optimizer.safetensors`: Adam's moments, tensors `m.<param>` and `v.<param>` for every
+//!   parameter;
+//! - `state.json`: the [`Counters`], Adam's step count and learning rate, the format version;
+//! - `config.toml`: the effective run configuration, as the caller passed it;
+//! - `manifest.json`: the format version and, for every file above, its length and 64-bit FNV-1a
+//!   hash.
+//!
+//! Saving writes everything into a fresh sibling directory `checkpoint.tmp-<pid>-<n>`, fsyncs the
+//! files and the directory, then swaps it in: `checkpoint` → `checkpoint.old`, the temporary
+//! directory → `checkpoint`, remove `checkpoint.old` (fsyncing the run directory after the
+//! renames). Renames are atomic and `checkpoint` only ever names a complete directory, so after a
+//! crash at any point there is a complete `checkpoint`, or (crash between the two renames) only a
+//! complete `checkpoint.old`; [`load`] takes the first, else the second. One process writes a run
+//! directory at a time.
+//!
+//! Loading verifies the manifest (every file present, lengths and hashes, version) and decodes and
+//! shape-checks every file before it touches the [`Dqn`]: a refused checkpoint leaves the agent as
+//! it was, and the error names the file and what is wrong with it.
+
+use std::fs;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use candle_core::{Device, Tensor, Var};
+use candle_nn::VarMap;
+use serde::{Deserialize, Serialize};
+
+use crate::dqn::Dqn;
+use crate::net;
+
+/// The format written, and the only one read.
+pub const FORMAT_VERSION: u32 = 1;
+/// The checkpoint directory inside the run directory.
+pub const DIR: &str = "checkpoint";
+/// Where the previous checkpoint waits while a new one is swapped in.
+pub const OLD_DIR: &str = "checkpoint.old";
+/// Prefix of the temporary directories a save writes into.
+const TMP_PREFIX: &str = "checkpoint.tmp-";
+
+pub const ONLINE: &str = "online.safetensors";
+pub const TARGET: &str = "target.safetensors";
+pub const OPTIMIZER: &str = "optimizer.safetensors";
+pub const STATE: &str = "state.json";
+pub const CONFIG: &str = "config.toml";
+pub const MANIFEST: &str = "manifest.json";
+
+/// The files the manifest covers, in the order they are written and verified.
+const FILES: [&str; 5] = [ONLINE, TARGET, OPTIMIZER, STATE, CONFIG];
+
+/// The learner's progress, saved with the networks.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+pub struct Counters {
+    pub run_id: String,
+    pub learner_step: u64,
+    pub env_steps: u64,
+    pub transitions_received: u64,
+    pub transitions_stored: u64,
+    pub transitions_rejected: u64,
+    pub batches_rejected: u64,
+    pub episodes: u64,
+    pub weights_version: u64,
+    pub elapsed_secs: f64,
+}
+
+/// What [`load`] returns besides the restored [`Dqn`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct Loaded {
+    pub counters: Counters,
+    /// The run configuration saved with the checkpoint (TOML text).
+    pub config_toml: String,
+}
+
+/// A checkpoint that could not be written or read. Every variant names the file or directory.
+#[derive(Debug, thiserror::Error)]
+pub enum CheckpointError {
+    #[error("no checkpoint in {} (neither {DIR}/ nor {OLD_DIR}/)", .0.display())]
+    NotFound(PathBuf),
+    #[error("checkpoint {}: {action}: {source}", path.display())]
+    Io {
+        path: PathBuf,
+        action: &'static str,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("checkpoint {} is missing", path.display())]
+    Missing { path: PathBuf },
+    #[error("checkpoint {} is corrupt: {reason}", path.display())]
+    Corrupt { path: PathBuf, reason: String },
+    #[error("checkpoint {} has format version {found}; this build reads version {FORMAT_VERSION}", path.display())]
+    UnsupportedVersion { path: PathBuf, found: u32 },
+    #[error("checkpoint {} does not fit this network: {reason}", path.display())]
+    Incompatible { path: PathBuf, reason: String },
+    #[error("checkpoint {}: serialising: {reason}", path.display())]
+    Serialise { path: PathBuf, reason: String },
+}
+
+/// `state.json`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+struct State {
+    version: u32,
+    counters: Counters,
+    /// Adam steps taken.
+    adam_t: u64,
+    /// Adam's learning rate when saved (for the record: [`load`] keeps the [`Dqn`]'s own, which
+    /// comes from the configuration the run resumes with).
+    learning_rate: f64,
+    /// `counters.elapsed_secs` as IEEE-754 bits. serde_json writes the shortest decimal that
+    /// round-trips, but its default parser (without the `float_roundtrip` feature) can land one
+    /// ulp off, so the exact value travels as bits too; [`load`] checks the two agree.
+    elapsed_secs_bits: u64,
+}
+
+/// `manifest.json`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+struct Manifest {
+    version: u32,
+    files: Vec<FileEntry>,
+}
+
+/// Just the version of a manifest, read first so that a future layout is reported as a version
+/// mismatch rather than as unparsable.
+#[derive(Debug, Deserialize)]
+struct ManifestVersion {
+    version: u32,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+struct FileEntry {
+    name: String,
+    bytes: u64,
+    /// 64-bit FNV-1a of the file's bytes, 16 lowercase hex digits.
+    fnv1a64: String,
+}
+
+/// 64-bit FNV-1a (Fowler–Noll–Vo). Not cryptographic; it detects corruption: a change of any
+/// single byte always changes the hash (each step is a bijection of the state).
+#[must_use]
+pub fn fnv1a64(bytes: &[u8]) -> u64 {
+    const OFFSET: u64 = 0xcbf2_9ce4_8422_2325;
+    const PRIME: u64 = 0x0000_0100_0000_01b3;
+    bytes.iter().fold(OFFSET, |h, &b| (h ^ u64::from(b)).wrapping_mul(PRIME))
+}
+
+/// The checkpoint directory of `run_dir`.
+#[must_use]
+pub fn dir(run_dir: &Path) -> PathBuf {
+    run_dir.join(DIR)
+}
+
+/// Whether `run_dir` holds a checkpoint (complete, or left as `checkpoint.old` by a crash during a
+/// swap). Says nothing of its integrity: [`load`] checks that.
+#[must_use]
+pub fn exists(run_dir: &Path) -> bool {
+    run_dir.join(DIR).join(MANIFEST).is_file() || run_dir.join(OLD_DIR).join(MANIFEST).is_file()
+}
+
+/// Saves the whole learner state into `run_dir/checkpoint/`, replacing any previous checkpoint
+/// atomically (see the module documentation). Returns the checkpoint directory.
+pub fn save(run_dir: &Path, dqn: &Dqn, counters: &Counters, config_toml: &str) -> Result<PathBuf, CheckpointError> {
+    fs::create_dir_all(run_dir).map_err(io_error(run_dir, "creating the run directory"))?;
+    let final_dir = dir(run_dir);
+    let serialise = |name: &str, reason: String| CheckpointError::Serialise { path: final_dir.join(name), reason };
+
+    let online = net::to_safetensors(&dqn.online_vars).map_err(|e| serialise(ONLINE, message(&e)))?;
+    let target = net::to_safetensors(&dqn.target_vars).map_err(|e| serialise(TARGET, message(&e)))?;
+    let optimizer = optimizer_safetensors(dqn).map_err(|e| serialise(OPTIMIZER, message(&e)))?;
+    let state = State {
+        version: FORMAT_VERSION,
+        counters: counters.clone(),
+        adam_t: dqn.adam.t,
+        learning_rate: dqn.adam.lr,
+        elapsed_secs_bits: counters.elapsed_secs.to_bits(),
+    };
+    let state = serde_json::to_vec_pretty(&state).map_err(|e| serialise(STATE, e.to_string()))?;
+    let contents: [&[u8]; 5] = [&online, &target, &optimizer, &state, config_toml.as_bytes()];
+    let manifest = Manifest {
+        version: FORMAT_VERSION,
+        files: FILES
+            .iter()
+            .zip(contents)
+            .map(|(name, bytes)| FileEntry { name: (*name).into(), bytes: bytes.len() as u64, fnv1a64: format!("{:016x}", fnv1a64(bytes)) })
+            .collect(),
+    };
+    let manifest = serde_json::to_vec_pretty(&manifest).map_err(|e| serialise(MANIFEST, e.to_string()))?;
+
+    static SAVES: AtomicU64 = AtomicU64::new(0);
+    let pid = std::process::id();
+    let tmp = run_dir.join(format!("{TMP_PREFIX}{pid}-{}", SAVES.fetch_add(1, Ordering::Relaxed)));
+    if tmp.exists() {
+        // Left by a crashed process that had our pid.
+        fs::remove_dir_all(&tmp).map_err(io_error(&tmp, "removing a stale temporary directory"))?;
+    }
+    fs::create_dir(&tmp).map_err(io_error(&tmp, "creating the temporary directory"))?;
+    let written = (|| {
+        for (name, bytes) in FILES.iter().zip(contents).chain([(&MANIFEST, manifest.as_slice())]) {
+            write_synced(&tmp.join(name), bytes)?;
+        }
+        sync_dir(&tmp)?;
+        swap_in(run_dir, &tmp)
+    })();
+    if let Err(e) = written {
+        // Nothing of ours is left behind; the previous checkpoint is intact (as `checkpoint`, or
+        // as `checkpoint.old` if the first rename happened).
+        let _ = fs::remove_dir_all(&tmp);
+        return Err(e);
+    }
+
+    // The new checkpoint is committed: what follows is tidying, and its failures are only logged.
+    let old = run_dir.join(OLD_DIR);
+    if old.exists()
+        && let Err(e) = fs::remove_dir_all(&old)
+    {
+        tracing::warn!("checkpoint saved, but removing {} failed: {e}", old.display());
+    }
+    remove_stale_temporaries(run_dir, pid);
+    if let Err(e) = sync_dir(run_dir) {
+        tracing::warn!("{e}");
+    }
+    Ok(final_dir)
+}
+
+/// Loads the checkpoint of `run_dir` into `dqn` (online and target weights, Adam's moments and
+/// step count, `dqn.updates` = `counters.learner_step`), and returns the counters and the saved
+/// configuration. Uses `checkpoint/`, or `checkpoint.old/` if only that exists. Everything is
+/// verified before `dqn` is touched: on error it is unchanged. Adam's learning rate stays the
+/// `dqn`'s own.
+pub fn load(run_dir: &Path, dqn: &mut Dqn) -> Result<Loaded, CheckpointError> {
+    let dir = locate(run_dir)?;
+    let [online, target, optimizer, state, config] = read_verified(&dir)?;
+
+    let state_path = dir.join(STATE);
+    let state: State = serde_json::from_slice(&state)
+        .map_err(|e| CheckpointError::Corrupt { path: state_path.clone(), reason: format!("unparsable JSON: {e}") })?;
+    if state.version != FORMAT_VERSION {
+        return Err(CheckpointError::UnsupportedVersion { path: state_path, found: state.version });
+    }
+    let mut counters = state.counters;
+    let exact = f64::from_bits(state.elapsed_secs_bits);
+    let close =
+        exact == counters.elapsed_secs || (exact - counters.elapsed_secs).abs() <= 1e-12 * exact.abs().max(counters.elapsed_secs.abs());
+    if !close {
+        return Err(CheckpointError::Corrupt {
+            path: state_path,
+            reason: format!("elapsed_secs {} disagrees with elapsed_secs_bits ({exact})", counters.elapsed_secs),
+        });
+    }
+    counters.elapsed_secs = exact;
+    let config_toml = String::from_utf8(config)
+        .map_err(|e| CheckpointError::Corrupt { path: dir.join(CONFIG), reason: format!("not UTF-8 text: {e}") })?;
+
+    let online = stage_parameters(&dqn.online_vars, &online, &dir.join(ONLINE), &dqn.device)?;
+    let target = stage_parameters(&dqn.target_vars, &target, &dir.join(TARGET), &dqn.device)?;
+    let moments = stage_moments(dqn, &optimizer, &dir.join(OPTIMIZER))?;
+
+    // Everything checked: commit. (Copies between maps of identical names and shapes.)
+    let commit = |path: &Path, e: candle_core::Error| CheckpointError::Incompatible { path: path.to_owned(), reason: message(&e) };
+    net::copy_parameters(&online, &dqn.online_vars).map_err(|e| commit(&dir.join(ONLINE), e))?;
+    net::copy_parameters(&target, &dqn.target_vars).map_err(|e| commit(&dir.join(TARGET), e))?;
+    for (slot, (m, v)) in dqn.adam.slots.iter_mut().zip(moments) {
+        slot.2 = m;
+        slot.3 = v;
+    }
+    dqn.adam.t = state.adam_t;
+    dqn.updates = counters.learner_step;
+    Ok(Loaded { counters, config_toml })
+}
+
+/// Adam's moments as a safetensors file: `m.<param>` and `v.<param>` for every slot.
+fn optimizer_safetensors(dqn: &Dqn) -> candle_core::Result<Vec<u8>> {
+    let named: Vec<(String, &Tensor)> =
+        dqn.adam.slots.iter().flat_map(|(name, _, m, v)| [(format!("m.{name}"), m), (format!("v.{name}"), v)]).collect();
+    safetensors::serialize(named.iter().map(|(k, t)| (k.as_str(), *t)), None)
+        .map_err(|e| candle_core::Error::Msg(format!("serialising moments: {e}")))
+}
+
+/// The directory to load: `checkpoint`, else `checkpoint.old`.
+fn locate(run_dir: &Path) -> Result<PathBuf, CheckpointError> {
+    let current = run_dir.join(DIR);
+    if current.is_dir() {
+        return Ok(current);
+    }
+    let old = run_dir.join(OLD_DIR);
+    if old.is_dir() {
+        tracing::warn!("{} is absent (interrupted save): loading {}", current.display(), old.display());
+        return Ok(old);
+    }
+    Err(CheckpointError::NotFound(run_dir.to_owned()))
+}
+
+/// Reads the manifest and every file it must list, checking version, lengths and hashes. Returns
+/// the files' bytes in [`FILES`] order.
+fn read_verified(dir: &Path) -> Result<[Vec<u8>; 5], CheckpointError> {
+    let manifest_path = dir.join(MANIFEST);
+    let corrupt_manifest = |reason: String| CheckpointError::Corrupt { path: manifest_path.clone(), reason };
+    let bytes = read(&manifest_path)?;
+    let version: ManifestVersion = serde_json::from_slice(&bytes).map_err(|e| corrupt_manifest(format!("unparsable JSON: {e}")))?;
+    if version.version != FORMAT_VERSION {
+        return Err(CheckpointError::UnsupportedVersion { path: manifest_path, found: version.version });
+    }
+    let manifest: Manifest = serde_json::from_slice(&bytes).map_err(|e| corrupt_manifest(format!("unparsable JSON: {e}")))?;
+    for (i, entry) in manifest.files.iter().enumerate() {
+        if !FILES.contains(&entry.name.as_str()) {
+            return Err(corrupt_manifest(format!("lists unknown file `{}`", entry.name)));
+        }
+        if manifest.files[..i].iter().any(|e| e.name == entry.name) {
+            return Err(corrupt_manifest(format!("lists `{}` twice", entry.name)));
+        }
+    }
+    let mut out: [Vec<u8>; 5] = Default::default();
+    for (name, slot) in FILES.iter().zip(&mut out) {
+        let entry = manifest.files.iter().find(|e| e.name == *name).ok_or_else(|| corrupt_manifest(format!("does not list `{name}`")))?;
+        let expected = u64::from_str_radix(&entry.fnv1a64, 16)
+            .ok()
+            .filter(|_| entry.fnv1a64.len() == 16)
+            .ok_or_else(|| corrupt_manifest(format!("hash of `{name}` is not 16 hex digits: {:?}", entry.fnv1a64)))?;
+        let path = dir.join(name);
+        let bytes = read(&path)?;
+        let len = bytes.len() as u64;
+        if len != entry.bytes {
+            let reason = if len < entry.bytes {
+                format!("truncated: {len} bytes, the manifest records {}", entry.bytes)
+            } else {
+                format!("{len} bytes, the manifest records {}", entry.bytes)
+            };
+            return Err(CheckpointError::Corrupt { path, reason });
+        }
+        let found = fnv1a64(&bytes);
+        if found != expected {
+            return Err(CheckpointError::Corrupt {
+                path,
+                reason: format!("checksum mismatch (expected {expected:016x}, found {found:016x})"),
+            });
+        }
+        *slot = bytes;
+    }
+    Ok(out)
+}
+
+/// The parameters of a safetensors file in a new map with the names and shapes of `like`. Names
+/// and shapes are checked in name order first (so that the error is the same every time), then
+/// [`net::load_safetensors`] reads the file into the new map.
+fn stage_parameters(like: &VarMap, bytes: &[u8], path: &Path, device: &Device) -> Result<VarMap, CheckpointError> {
+    let file = safetensors::SafeTensors::deserialize(bytes)
+        .map_err(|e| CheckpointError::Corrupt { path: path.to_owned(), reason: format!("not a safetensors file: {e}") })?;
+    let incompatible = |reason: String| CheckpointError::Incompatible { path: path.to_owned(), reason };
+    let staged = VarMap::new();
+    {
+        let src = like.data().lock().expect("var map lock");
+        let mut names: Vec<&String> = src.keys().collect();
+        names.sort();
+        let mut dst = staged.data().lock().expect("var map lock");
+        for name in names {
+            let var = &src[name];
+            let t = file.tensor(name).map_err(|_| incompatible(format!("lacks parameter `{name}`")))?;
+            if t.shape() != var.dims() {
+                return Err(incompatible(format!("parameter `{name}` has shape {:?}, expected {:?}", t.shape(), var.dims())));
+            }
+            dst.insert(name.clone(), Var::zeros(var.shape(), var.dtype(), device).map_err(|e| incompatible(message(&e)))?);
+        }
+    }
+    net::load_safetensors(&staged, bytes, device).map_err(|e| incompatible(message(&e)))?;
+    Ok(staged)
+}
+
+/// Adam's moments from a safetensors file, one (m, v) per slot of `dqn.adam`, shape-checked.
+fn stage_moments(dqn: &Dqn, bytes: &[u8], path: &Path) -> Result<Vec<(Tensor, Tensor)>, CheckpointError> {
+    let tensors = candle_core::safetensors::load_buffer(bytes, &dqn.device)
+        .map_err(|e| CheckpointError::Corrupt { path: path.to_owned(), reason: format!("not a safetensors file: {e}") })?;
+    let incompatible = |reason: String| CheckpointError::Incompatible { path: path.to_owned(), reason };
+    let moment = |kind: &str, name: &str, var: &Var| {
+        let key = format!("{kind}.{name}");
+        let t = tensors.get(&key).ok_or_else(|| incompatible(format!("lacks tensor `{key}`")))?;
+        if t.dims() != var.dims() {
+            return Err(incompatible(format!("tensor `{key}` has shape {:?}, expected {:?}", t.dims(), var.dims())));
+        }
+        t.to_dtype(var.dtype()).map_err(|e| incompatible(format!("tensor `{key}`: {}", message(&e))))
+    };
+    dqn.adam.slots.iter().map(|(name, var, _, _)| Ok((moment("m", name, var)?, moment("v", name, var)?))).collect()
+}
+
+/// Swaps the complete directory `tmp` in as `run_dir/checkpoint`.
+fn swap_in(run_dir: &Path, tmp: &Path) -> Result<(), CheckpointError> {
+    let current = run_dir.join(DIR);
+    let old = run_dir.join(OLD_DIR);
+    if current.is_dir() {
+        if old.exists() {
+            // Stale (a crash after the swap): `checkpoint` is complete, so this can go.
+            fs::remove_dir_all(&old).map_err(io_error(&old, "removing a stale previous checkpoint"))?;
+        }
+        fs::rename(&current, &old).map_err(io_error(&current, "moving the previous checkpoint aside"))?;
+    }
+    fs::rename(tmp, &current).map_err(io_error(tmp, "renaming the new checkpoint into place"))?;
+    sync_dir(run_dir)
+}
+
+/// Removes the temporary directories of other processes' interrupted saves.
+fn remove_stale_temporaries(run_dir: &Path, pid: u32) {
+    let Ok(entries) = fs::read_dir(run_dir) else { return };
+    let ours = format!("{TMP_PREFIX}{pid}-");
+    for entry in entries.flatten() {
+        let name = entry.file_name();
+        let name = name.to_string_lossy();
+        if name.starts_with(TMP_PREFIX)
+            && !name.starts_with(&ours)
+            && entry.path().is_dir()
+            && let Err(e) = fs::remove_dir_all(entry.path())
+        {
+            tracing::warn!("removing the stale {}: {e}", entry.path().display());
+        }
+    }
+}
+
+fn write_synced(path: &Path, bytes: &[u8]) -> Result<(), CheckpointError> {
+    let mut f = fs::File::create(path).map_err(io_error(path, "creating"))?;
+    f.write_all(bytes).map_err(io_error(path, "writing"))?;
+    f.sync_all().map_err(io_error(path, "syncing"))
+}
+
+/// Makes a directory's entries (creations, renames) durable. A no-op where directories cannot be
+/// opened as files.
+fn sync_dir(path: &Path) -> Result<(), CheckpointError> {
+    #[cfg(unix)]
+    fs::File::open(path).and_then(|d| d.sync_all()).map_err(io_error(path, "syncing the directory"))?;
+    #[cfg(not(unix))]
+    let _ = path;
+    Ok(())
+}
+
+/// A candle error's message without the backtrace candle attaches when `RUST_BACKTRACE` is set.
+fn message(e: &candle_core::Error) -> String {
+    match e {
+        candle_core::Error::WithBacktrace { inner, .. } => message(inner),
+        other => other.to_string(),
+    }
+}
+
+fn read(path: &Path) -> Result<Vec<u8>, CheckpointError> {
+    fs::read(path).map_err(|source| match source.kind() {
+        std::io::ErrorKind::NotFound => CheckpointError::Missing { path: path.to_owned() },
+        _ => CheckpointError::Io { path: path.to_owned(), action: "reading", source },
+    })
+}
+
+fn io_error(path: &Path, action: &'static str) -> impl Fn(std::io::Error) -> CheckpointError + use<> {
+    let path = path.to_owned();
+    move |source| CheckpointError::Io { path: path.clone(), action, source }
+}
+
+#[cfg(test)]
+mod tests {
+    use candle_core::DType;
+
+    use super::*;
+    use crate::config::AgentConfig;
+    use crate::dqn::{Batch, UpdateStats};
+    use crate::net::{NetShape, images_tensor, to_safetensors};
+
+    fn shape() -> NetShape {
+        NetShape { height: 8, width: 8, channels: 1, scalars: 2, actions: 2, filters: 2, hidden: 4 }
+    }
+
+    fn cfg() -> AgentConfig {
+        // Target copied every 3 updates: after 4 updates online and target differ.
+        AgentConfig { learning_rate: 1e-2, target_update_period: 3, seed: 7, ..AgentConfig::default() }
+    }
+
+    fn batch(dqn: &Dqn) -> Batch {
+        let dev = &dqn.device;
+        let n = 4;
+        let imgs: Vec<Vec<u8>> = (0..n).map(|i| (0..64).map(|p| ((p * 7 + i * 50) % 256) as u8).collect()).collect();
+        let refs: Vec<&[u8]> = imgs.iter().map(Vec::as_slice).collect();
+        let images = images_tensor(&refs, &dqn.shape, dev).unwrap();
+        let scalars = Tensor::zeros((n, 2), DType::F32, dev).unwrap();
+        Batch {
+            images: images.clone(),
+            scalars: scalars.clone(),
+            actions: Tensor::new(&[0u32, 1, 1, 0], dev).unwrap(),
+            rewards: Tensor::new(&[1.0f32, -0.5, 0.25, 0.0], dev).unwrap(),
+            next_images: images.flip_rows(),
+            next_scalars: scalars,
+            discounts: Tensor::new(&[0.9f32, 0.0, 0.9, 0.9], dev).unwrap(),
+            weights: Tensor::ones(n, DType::F32, dev).unwrap(),
+        }
+    }
+
+    trait FlipRows {
+        fn flip_rows(&self) -> Tensor;
+    }
+
+    impl FlipRows for Tensor {
+        /// The batch in reverse order (next observations differ from the observations).
+        fn flip_rows(&self) -> Tensor {
+            let n = self.dim(0).unwrap();
+            let idx = Tensor::from_vec((0..n as u32).rev().collect::<Vec<_>>(), n, self.device()).unwrap();
+            self.index_select(&idx, 0).unwrap()
+        }
+    }
+
+    /// An agent after 4 updates (target synced at update 3, so target ≠ online, and Adam's
+    /// moments are non-zero).
+    fn trained(shape: NetShape) -> Dqn {
+        let mut dqn = Dqn::new(shape, &cfg(), &Device::Cpu).unwrap();
+        let b = batch(&dqn);
+        for _ in 0..4 {
+            dqn.update(&b).unwrap();
+        }
+        dqn
+    }
+
+    fn counters() -> Counters {
+        Counters {
+            run_id: "run-42".into(),
+            learner_step: 4,
+            env_steps: 1234,
+            transitions_received: 1200,
+            transitions_stored: 1190,
+            transitions_rejected: 10,
+            batches_rejected: 2,
+            episodes: 17,
+            weights_version: 3,
+            // serde_json 1.0's default parser reads this value's shortest decimal back one ulp off
+            // (about one random value in ten is): `elapsed_secs_bits` keeps it exact.
+            elapsed_secs: 3969.3421758078052,
+        }
+    }
+
+    const CONFIG_TOML: &str = "[agent]\ngamma = 0.9\n";
+
+    /// Everything of a Dqn that a checkpoint covers.
+    fn snapshot(dqn: &Dqn) -> (Vec<u8>, Vec<u8>, Vec<u8>, u64, u64) {
+        (
+            to_safetensors(&dqn.online_vars).unwrap(),
+            to_safetensors(&dqn.target_vars).unwrap(),
+            optimizer_safetensors(dqn).unwrap(),
+            dqn.adam.t,
+            dqn.updates,
+        )
+    }
+
+    /// A fresh agent of `shape` initialised from another seed than the saved one.
+    fn fresh(shape: NetShape) -> Dqn {
+        Dqn::new(shape, &AgentConfig { seed: 8, ..cfg() }, &Device::Cpu).unwrap()
+    }
+
+    /// Replaces a file of a checkpoint and updates the manifest to match, so that the defect
+    /// reaches the decoding stage.
+    fn rewrite(dir: &Path, name: &str, bytes: &[u8]) {
+        fs::write(dir.join(name), bytes).unwrap();
+        let mut m: Manifest = serde_json::from_slice(&fs::read(dir.join(MANIFEST)).unwrap()).unwrap();
+        let e = m.files.iter_mut().find(|e| e.name == name).unwrap();
+        e.bytes = bytes.len() as u64;
+        e.fnv1a64 = format!("{:016x}", fnv1a64(bytes));
+        fs::write(dir.join(MANIFEST), serde_json::to_vec_pretty(&m).unwrap()).unwrap();
+    }
+
+    fn bits(s: &UpdateStats) -> (u32, u32, u32, Vec<u32>) {
+        (s.loss.to_bits(), s.mean_q.to_bits(), s.grad_norm.to_bits(), s.td_abs.iter().map(|x| x.to_bits()).collect())
+    }
+
+    fn entries(dir: &Path) -> Vec<String> {
+        let mut v: Vec<String> = fs::read_dir(dir).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
+        v.sort();
+        v
+    }
+
+    #[test]
+    fn fnv1a64_matches_the_reference_vectors() {
+        // From the FNV reference test suite (Noll, fnv_test.c / IETF draft-eastlake-fnv).
+        assert_eq!(fnv1a64(b""), 0xcbf2_9ce4_8422_2325);
+        assert_eq!(fnv1a64(b"a"), 0xaf63_dc4c_8601_ec8c);
+        assert_eq!(fnv1a64(b"foobar"), 0x8594_4171_f739_67e8);
+    }
+
+    #[test]
+    fn round_trip_is_bit_exact_and_resume_continues_exactly() {
+        let tmp = tempfile::tempdir().unwrap();
+        let mut saved = trained(shape());
+        assert!(!exists(tmp.path()));
+        let dir = save(tmp.path(), &saved, &counters(), CONFIG_TOML).unwrap();
+        assert_eq!(dir, tmp.path().join("checkpoint"));
+        assert!(exists(tmp.path()));
+        assert_eq!(
+            entries(&dir),
+            ["config.toml", "manifest.json", "online.safetensors", "optimizer.safetensors", "state.json", "target.safetensors"]
+        );
+        // The files hold exactly what the serialisers produce.
+        assert_eq!(fs::read(dir.join(ONLINE)).unwrap(), to_safetensors(&saved.online_vars).unwrap());
+        assert_eq!(fs::read(dir.join(TARGET)).unwrap(), to_safetensors(&saved.target_vars).unwrap());
+        assert_eq!(fs::read(dir.join(OPTIMIZER)).unwrap(), optimizer_safetensors(&saved).unwrap());
+        assert_eq!(fs::read_to_string(dir.join(CONFIG)).unwrap(), CONFIG_TOML);
+
+        let mut resumed = fresh(shape());
+        assert_ne!(snapshot(&resumed), snapshot(&saved), "the fresh agent starts elsewhere");
+        let loaded = load(tmp.path(), &mut resumed).unwrap();
+        assert_eq!(loaded, Loaded { counters: counters(), config_toml: CONFIG_TOML.into() });
+        assert_eq!(loaded.counters.elapsed_secs.to_bits(), 3969.3421758078052f64.to_bits());
+        let s = snapshot(&saved);
+        assert_ne!(s.0, s.1, "online and target differ after 4 updates with a sync at 3");
+        assert_eq!(snapshot(&resumed), s);
+        assert_eq!((resumed.adam.t, resumed.updates), (4, 4));
+
+        // Resuming continues exactly: same losses, statistics and weights, through a target sync
+        // (updates 5 and 6; the period is 3).
+        let b = batch(&saved);
+        for _ in 0..2 {
+            let a = saved.update(&b).unwrap();
+            let r = resumed.update(&b).unwrap();
+            assert_eq!(bits(&a), bits(&r));
+            assert_eq!(snapshot(&resumed), snapshot(&saved));
+        }
+        assert_eq!(to_safetensors(&saved.online_vars).unwrap(), to_safetensors(&saved.target_vars).unwrap(), "synced at update 6");
+    }
+
+    #[test]
+    fn a_flipped_byte_is_refused_naming_the_file_and_the_agent_is_unchanged() {
+        let tmp = tempfile::tempdir().unwrap();
+        let dir = save(tmp.path(), &trained(shape()), &counters(), CONFIG_TOML).unwrap();
+        let path = dir.join(ONLINE);
+        let mut bytes = fs::read(&path).unwrap();
+        // The last byte is parameter data: the file still parses, only the checksum can tell.
+        *bytes.last_mut().unwrap() ^= 0x01;
+        fs::write(&path, &bytes).unwrap();
+        let mut dqn = fresh(shape());
+        let before = snapshot(&dqn);
+        let e = load(tmp.path(), &mut dqn).unwrap_err();
+        let msg = e.to_string();
+        assert!(matches!(e, CheckpointError::Corrupt { .. }), "{msg}");
+        assert!(msg.starts_with(&format!("checkpoint {} is corrupt: checksum mismatch (expected ", path.display())), "{msg}");
+        assert_eq!(snapshot(&dqn), before);
+    }
+
+    #[test]
+    fn a_truncated_state_is_refused() {
+        let tmp = tempfile::tempdir().unwrap();
+        let dir = save(tmp.path(), &trained(shape()), &counters(), CONFIG_TOML).unwrap();
+        let path = dir.join(STATE);
+        let full = fs::read(&path).unwrap();
+        let half = &full[..full.len() / 2];
+        fs::write(&path, half).unwrap();
+        let mut dqn = fresh(shape());
+        let before = snapshot(&dqn);
+        let msg = load(tmp.path(), &mut dqn).unwrap_err().to_string();
+        assert_eq!(
+            msg,
+            format!("checkpoint {} is corrupt: truncated: {} bytes, the manifest records {}", path.display(), half.len(), full.len())
+        );
+        // With a manifest that agrees (truncated before the manifest was written), the JSON
+        // parser refuses it.
+        rewrite(&dir, STATE, half);
+        let msg = load(tmp.path(), &mut dqn).unwrap_err().to_string();
+        assert!(msg.starts_with(&format!("checkpoint {} is corrupt: unparsable JSON: EOF", path.display())), "{msg}");
+        assert_eq!(snapshot(&dqn), before);
+    }
+
+    #[test]
+    fn a_network_of_another_shape_is_refused() {
+        let tmp = tempfile::tempdir().unwrap();
+        save(tmp.path(), &trained(shape()), &counters(), CONFIG_TOML).unwrap();
+        let mut wider = fresh(NetShape { hidden: 5, ..shape() });
+        let before = snapshot(&wider);
+        let e = load(tmp.path(), &mut wider).unwrap_err();
+        let msg = e.to_string();
+        assert!(matches!(e, CheckpointError::Incompatible { .. }), "{msg}");
+        // Parameters are checked in name order: the conv* ones fit, fc1.bias is [4] where 5 is
+        // expected.
+        let path = tmp.path().join("checkpoint").join(ONLINE);
+        assert_eq!(
+            msg,
+            format!("checkpoint {} does not fit this network: parameter `fc1.bias` has shape [4], expected [5]", path.display())
+        );
+        assert_eq!(snapshot(&wider), before);
+    }
+
+    #[test]
+    fn other_defects_are_refused_naming_the_file() {
+        let tmp = tempfile::tempdir().unwrap();
+        let dir = save(tmp.path(), &trained(shape()), &counters(), CONFIG_TOML).unwrap();
+        let mut dqn = fresh(shape());
+        let before = snapshot(&dqn);
+        let load_err = |dqn: &mut Dqn| load(tmp.path(), dqn).unwrap_err().to_string();
+
+        // Optimizer moments of the wrong shape (a consistent manifest: only the decoder can tell).
+        let good = fs::read(dir.join(OPTIMIZER)).unwrap();
+        let other = optimizer_safetensors(&trained(NetShape { hidden: 5, ..shape() })).unwrap();
+        rewrite(&dir, OPTIMIZER, &other);
+        let msg = load_err(&mut dqn);
+        assert!(msg.contains("optimizer.safetensors does not fit this network: tensor `m.fc1.bias` has shape [5], expected [4]"), "{msg}");
+        rewrite(&dir, OPTIMIZER, &good);
+
+        // A missing file.
+        let config = fs::read(dir.join(CONFIG)).unwrap();
+        fs::remove_file(dir.join(CONFIG)).unwrap();
+        assert_eq!(load_err(&mut dqn), format!("checkpoint {} is missing", dir.join(CONFIG).display()));
+        fs::write(dir.join(CONFIG), &config).unwrap();
+
+        // Another format version.
+        let manifest = fs::read_to_string(dir.join(MANIFEST)).unwrap();
+        let mut future: Manifest = serde_json::from_str(&manifest).unwrap();
+        future.version = 2;
+        fs::write(dir.join(MANIFEST), serde_json::to_vec_pretty(&future).unwrap()).unwrap();
+        assert_eq!(
+            load_err(&mut dqn),
+            format!("checkpoint {} has format version 2; this build reads version 1", dir.join(MANIFEST).display())
+        );
+
+        // An unparsable manifest.
+        fs::write(dir.join(MANIFEST), &manifest[..10]).unwrap();
+        let msg = load_err(&mut dqn);
+        assert!(msg.starts_with(&format!("checkpoint {} is corrupt: unparsable JSON", dir.join(MANIFEST).display())), "{msg}");
+
+        assert_eq!(snapshot(&dqn), before);
+        // Repaired, it loads.
+        fs::write(dir.join(MANIFEST), &manifest).unwrap();
+        load(tmp.path(), &mut dqn).unwrap();
+
+        // No checkpoint at all.
+        let empty = tempfile::tempdir().unwrap();
+        let msg = load(empty.path(), &mut dqn).unwrap_err().to_string();
+        assert!(msg.starts_with(&format!("no checkpoint in {}", empty.path().display())), "{msg}");
+    }
+
+    #[test]
+    fn a_crash_mid_swap_leaves_the_previous_checkpoint_loadable() {
+        let tmp = tempfile::tempdir().unwrap();
+        let saved = trained(shape());
+        save(tmp.path(), &saved, &counters(), CONFIG_TOML).unwrap();
+        // A crash between the two renames: `checkpoint` moved aside, the new one not yet in place
+        // (its temporary directory is incomplete).
+        fs::rename(tmp.path().join(DIR), tmp.path().join(OLD_DIR)).unwrap();
+        fs::create_dir(tmp.path().join("checkpoint.tmp-4000000000-0")).unwrap();
+        fs::write(tmp.path().join("checkpoint.tmp-4000000000-0").join(ONLINE), b"partial").unwrap();
+        assert!(exists(tmp.path()));
+        let mut dqn = fresh(shape());
+        assert_eq!(load(tmp.path(), &mut dqn).unwrap().counters, counters());
+        assert_eq!(snapshot(&dqn), snapshot(&saved));
+        // The next save installs a checkpoint and tidies up: the stale directories are gone.
+        let next = Counters { learner_step: 5, ..counters() };
+        save(tmp.path(), &dqn, &next, CONFIG_TOML).unwrap();
+        assert_eq!(entries(tmp.path()), ["checkpoint"]);
+        assert_eq!(load(tmp.path(), &mut fresh(shape())).unwrap().counters, next);
+    }
+
+    #[test]
+    fn saving_twice_leaves_one_checkpoint_the_latest() {
+        let tmp = tempfile::tempdir().unwrap();
+        let mut dqn = trained(shape());
+        save(tmp.path(), &dqn, &counters(), CONFIG_TOML).unwrap();
+        dqn.update(&batch(&dqn)).unwrap();
+        let second = Counters { learner_step: 5, env_steps: 2000, ..counters() };
+        save(tmp.path(), &dqn, &second, "[agent]\ngamma = 0.8\n").unwrap();
+        assert_eq!(entries(tmp.path()), ["checkpoint"]);
+        let mut resumed = fresh(shape());
+        let loaded = load(tmp.path(), &mut resumed).unwrap();
+        assert_eq!(loaded, Loaded { counters: second, config_toml: "[agent]\ngamma = 0.8\n".into() });
+        assert_eq!(snapshot(&resumed), snapshot(&dqn));
+    }
+}

@@ -1,0 +1,294 @@
+//! The run's configuration: one TOML file with `[env]` (the simulator, see `sim_core::config`),
+//! `[agent]` (network, replay and training) and `[service]` (the gRPC server and the run
+//! directory). Every field has a documented default; values are validated at load with errors that
+//! name the field.
+
+use std::path::Path;
+
+use serde::{Deserialize, Serialize};
+use sim_core::actions::ActionSet;
+use sim_core::config::{EnvConfig, Variant};
+
+/// The whole configuration of a run.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct RunConfig {
+    pub env: EnvConfig,
+    pub agent: AgentConfig,
+    pub service: ServiceConfig,
+}
+
+/// The DQN agent and its training.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct AgentConfig {
+    /// Discrete actions (default `paper6`, the paper code's six).
+    pub action_set: ActionSet,
+    /// Filters of each of the three convolution layers (default 64, the paper's).
+    pub conv_filters: usize,
+    /// Units of each of the two hidden fully connected layers (default 256, the paper's).
+    pub hidden: usize,
+    /// Discount γ (default 0.99).
+    pub gamma: f32,
+    /// Adam learning rate (default 2.5e-4).
+    pub learning_rate: f64,
+    /// Transitions per update (default 32).
+    pub batch_size: usize,
+    /// Replay capacity, transitions (default 100 000).
+    pub replay_capacity: usize,
+    /// Replay memory cap, bytes, frames included (default 2 GiB).
+    pub replay_max_bytes: u64,
+    /// Transitions stored before training starts (default 1 000).
+    pub min_replay: usize,
+    /// Samples trained per transition inserted (default 0.25: one batch of 32 per 128 steps).
+    pub replay_ratio: f32,
+    /// Updates between target-network copies (default 1 000).
+    pub target_update_period: u64,
+    /// Gradients are rescaled to at most this global L2 norm (default 10).
+    pub grad_clip_norm: f32,
+    /// Huber loss threshold δ (default 1).
+    pub huber_delta: f32,
+    /// Double DQN targets (default false: the paper's plain DQN).
+    pub double_dqn: bool,
+    /// Prioritized replay (default false: uniform, the paper's).
+    pub prioritized_replay: bool,
+    /// Prioritization exponent α (default 0.6) and importance-sampling exponent β (default 0.4).
+    pub priority_alpha: f32,
+    pub priority_beta: f32,
+    /// n-step returns (default 1, the paper's one-step targets).
+    pub n_step: usize,
+    /// Exploration: ε decays linearly from `epsilon_start` to `epsilon_end` over
+    /// `epsilon_decay_steps` environment steps (defaults 1.0, 0.05, 200 000).
+    pub epsilon_start: f32,
+    pub epsilon_end: f32,
+    pub epsilon_decay_steps: u64,
+    /// Per-actor ε (Ape-X: ε_i = ε^(1 + α·i/(N−1))) instead of the schedule (default false).
+    pub per_actor_epsilon: bool,
+    pub apex_epsilon: f32,
+    pub apex_alpha: f32,
+    /// Updates between weight publications to actors (default 100).
+    pub publish_every_updates: u64,
+    /// Seed of network initialisation and replay sampling (default 0).
+    pub seed: u64,
+}
+
+impl Default for AgentConfig {
+    fn default() -> Self {
+        Self {
+            action_set: ActionSet::Paper6,
+            conv_filters: 64,
+            hidden: 256,
+            gamma: 0.99,
+            learning_rate: 2.5e-4,
+            batch_size: 32,
+            replay_capacity: 100_000,
+            replay_max_bytes: 2 << 30,
+            min_replay: 1_000,
+            replay_ratio: 0.25,
+            target_update_period: 1_000,
+            grad_clip_norm: 10.0,
+            huber_delta: 1.0,
+            double_dqn: false,
+            prioritized_replay: false,
+            priority_alpha: 0.6,
+            priority_beta: 0.4,
+            n_step: 1,
+            epsilon_start: 1.0,
+            epsilon_end: 0.05,
+            epsilon_decay_steps: 200_000,
+            per_actor_epsilon: false,
+            apex_epsilon: 0.4,
+            apex_alpha: 7.0,
+            publish_every_updates: 100,
+            seed: 0,
+        }
+    }
+}
+
+/// The server and its run directory.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct ServiceConfig {
+    /// gRPC listen address (default 127.0.0.1:50051).
+    pub listen: String,
+    /// Run directory: effective config, checkpoints, metrics (default `runs/default`).
+    pub run_dir: String,
+    /// Seconds between checkpoints (default 300).
+    pub checkpoint_interval_secs: u64,
+    /// Largest gRPC message accepted or sent, bytes (default 64 MiB: a weights message is ~7 MB
+    /// for the paper network, a batch of 256 84×84 RGB transitions ~5.4 MB).
+    pub max_message_bytes: usize,
+    /// Seconds of silence after which an actor counts as disconnected (default 30).
+    pub actor_timeout_secs: u64,
+    /// Episodes in the rolling statistics of the status (default 100).
+    pub stats_window: usize,
+}
+
+impl Default for ServiceConfig {
+    fn default() -> Self {
+        Self {
+            listen: "127.0.0.1:50051".into(),
+            run_dir: "runs/default".into(),
+            checkpoint_interval_secs: 300,
+            max_message_bytes: 64 << 20,
+            actor_timeout_secs: 30,
+            stats_window: 100,
+        }
+    }
+}
+
+/// A configuration that could not be loaded.
+#[derive(Debug, thiserror::Error)]
+pub enum ConfigError {
+    #[error("reading config file {path}: {source}")]
+    Read { path: String, source: std::io::Error },
+    #[error("config file {path}: {message}")]
+    Parse { path: String, message: String },
+    #[error("config file {path}: field `{field}`: {message}")]
+    Invalid { path: String, field: String, message: String },
+}
+
+impl RunConfig {
+    /// Loads and validates a TOML file; missing fields take their defaults.
+    pub fn load(path: &Path) -> Result<Self, ConfigError> {
+        let shown = path.display().to_string();
+        let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Read { path: shown.clone(), source })?;
+        Self::from_toml(&text, &shown)
+    }
+
+    /// Parses and validates TOML text; `origin` names it in errors.
+    pub fn from_toml(text: &str, origin: &str) -> Result<Self, ConfigError> {
+        let cfg: Self = toml::from_str(text).map_err(|e| ConfigError::Parse { path: origin.into(), message: e.to_string() })?;
+        cfg.validate().map_err(|(field, message)| ConfigError::Invalid { path: origin.into(), field, message })?;
+        Ok(cfg)
+    }
+
+    /// The configuration as TOML (what is written to the run directory).
+    #[must_use]
+    pub fn to_toml(&self) -> String {
+        toml::to_string_pretty(self).expect("the config serialises")
+    }
+
+    /// Checks every field; the error is (dotted field path, what is wrong).
+    pub fn validate(&self) -> Result<(), (String, String)> {
+        self.env.validate().map_err(|e| (format!("env.{}", e.field), e.message))?;
+        let a = &self.agent;
+        let bad = |field: &str, message: String| Err((format!("agent.{field}"), message));
+        if !(1..=4096).contains(&a.conv_filters) {
+            return bad("conv_filters", format!("{} must be 1..=4096", a.conv_filters));
+        }
+        if !(1..=65536).contains(&a.hidden) {
+            return bad("hidden", format!("{} must be 1..=65536", a.hidden));
+        }
+        if !(a.gamma > 0.0 && a.gamma <= 1.0) {
+            return bad("gamma", format!("{} must be in (0, 1]", a.gamma));
+        }
+        if !(a.learning_rate.is_finite() && a.learning_rate > 0.0 && a.learning_rate < 1.0) {
+            return bad("learning_rate", format!("{} must be in (0, 1)", a.learning_rate));
+        }
+        if !(1..=4096).contains(&a.batch_size) {
+            return bad("batch_size", format!("{} must be 1..=4096", a.batch_size));
+        }
+        if a.replay_capacity < a.batch_size {
+            return bad("replay_capacity", format!("{} must be at least batch_size ({})", a.replay_capacity, a.batch_size));
+        }
+        if a.min_replay < a.batch_size || a.min_replay > a.replay_capacity {
+            return bad(
+                "min_replay",
+                format!("{} must be between batch_size ({}) and replay_capacity ({})", a.min_replay, a.batch_size, a.replay_capacity),
+            );
+        }
+        if a.replay_max_bytes < 1 << 20 {
+            return bad("replay_max_bytes", format!("{} is below 1 MiB", a.replay_max_bytes));
+        }
+        if !(a.replay_ratio.is_finite() && a.replay_ratio > 0.0 && a.replay_ratio <= 64.0) {
+            return bad("replay_ratio", format!("{} must be in (0, 64]", a.replay_ratio));
+        }
+        if a.target_update_period == 0 {
+            return bad("target_update_period", "must be at least 1".into());
+        }
+        if !(a.grad_clip_norm.is_finite() && a.grad_clip_norm > 0.0) {
+            return bad("grad_clip_norm", format!("{} must be > 0", a.grad_clip_norm));
+        }
+        if !(a.huber_delta.is_finite() && a.huber_delta > 0.0) {
+            return bad("huber_delta", format!("{} must be > 0", a.huber_delta));
+        }
+        if !(1..=32).contains(&a.n_step) {
+            return bad("n_step", format!("{} must be 1..=32", a.n_step));
+        }
+        for (x, f) in [
+            (a.priority_alpha, "priority_alpha"),
+            (a.priority_beta, "priority_beta"),
+            (a.epsilon_start, "epsilon_start"),
+            (a.epsilon_end, "epsilon_end"),
+            (a.apex_epsilon, "apex_epsilon"),
+        ] {
+            if !(0.0..=1.0).contains(&x) {
+                return bad(f, format!("{x} must be in [0, 1]"));
+            }
+        }
+        if !(a.apex_alpha.is_finite() && a.apex_alpha >= 0.0) {
+            return bad("apex_alpha", format!("{} must be >= 0", a.apex_alpha));
+        }
+        if a.publish_every_updates == 0 {
+            return bad("publish_every_updates", "must be at least 1".into());
+        }
+        let s = &self.service;
+        if s.listen.trim().is_empty() {
+            return Err(("service.listen".into(), "must be an address such as 127.0.0.1:50051".into()));
+        }
+        if s.run_dir.trim().is_empty() {
+            return Err(("service.run_dir".into(), "must be a directory path".into()));
+        }
+        if s.max_message_bytes < 1 << 20 {
+            return Err(("service.max_message_bytes".into(), format!("{} is below 1 MiB", s.max_message_bytes)));
+        }
+        if s.stats_window == 0 {
+            return Err(("service.stats_window".into(), "must be at least 1".into()));
+        }
+        if self.env.camera.is_none() {
+            return Err(("env.camera".into(), "the agent drives from the camera: a camera must be configured".into()));
+        }
+        Ok(())
+    }
+
+    /// Scalar inputs of the network besides the image: speed, and d for the hybrid agent.
+    #[must_use]
+    pub fn scalar_inputs(&self) -> usize {
+        match self.env.variant {
+            Variant::Hybrid => 2,
+            Variant::EndToEnd => 1,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn defaults_validate_and_round_trip_through_toml() {
+        let cfg = RunConfig::default();
+        cfg.validate().unwrap();
+        let back = RunConfig::from_toml(&cfg.to_toml(), "roundtrip").unwrap();
+        assert_eq!(back, cfg);
+    }
+
+    #[test]
+    fn partial_files_take_defaults() {
+        let cfg = RunConfig::from_toml("[agent]\ngamma = 0.9\n[env]\nvariant = \"end_to_end\"\n", "t.toml").unwrap();
+        assert_eq!(cfg.agent.gamma, 0.9);
+        assert_eq!(cfg.agent.batch_size, 32);
+        assert_eq!(cfg.scalar_inputs(), 1);
+    }
+
+    #[test]
+    fn errors_name_the_field() {
+        let e = RunConfig::from_toml("[agent]\ngamma = 1.5\n", "run.toml").unwrap_err();
+        assert_eq!(e.to_string(), "config file run.toml: field `agent.gamma`: 1.5 must be in (0, 1]");
+        let e = RunConfig::from_toml("[env.reward]\nd0 = -2\n", "run.toml").unwrap_err();
+        assert!(e.to_string().contains("field `env.reward.d0`"), "{e}");
+        let e = RunConfig::from_toml("[agent]\nbatch = 3\n", "run.toml").unwrap_err();
+        assert!(e.to_string().contains("unknown field `batch`"), "{e}");
+    }
+}

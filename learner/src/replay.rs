@@ -1,0 +1,501 @@
+//! Experience replay. Frames are stored once, in a ring, and transitions refer to them by id: a
+//! step's observation is the `next` of one transition and the `obs` of the following one.
+//! Transitions are formed per (actor, environment) stream, with n-step returns when configured;
+//! eviction is FIFO, bounded both in transitions and in bytes. Sampling is uniform, or
+//! proportional to priority (Schaul et al. 2016) with importance weights.
+
+use std::collections::{HashMap, VecDeque};
+
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+/// Sizes and options of a replay buffer.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ReplayConfig {
+    /// Transitions kept.
+    pub capacity: usize,
+    /// Bytes the frames and transitions may take.
+    pub max_bytes: u64,
+    /// Bytes of one camera frame.
+    pub frame_bytes: usize,
+    pub gamma: f32,
+    pub n_step: usize,
+    pub prioritized: bool,
+    pub alpha: f32,
+    pub beta: f32,
+    pub seed: u64,
+}
+
+/// One environment step as it arrives from an actor (the domain form of the wire `Step`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct StepRecord<'a> {
+    pub env: u32,
+    pub episode: u64,
+    pub t: u32,
+    pub image: &'a [u8],
+    pub speed: f32,
+    pub d: f32,
+    pub action: u32,
+    pub reward: f32,
+    pub terminated: bool,
+    pub truncated: bool,
+}
+
+/// A transition between two stored frames.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Transition {
+    obs: u64,
+    next: u64,
+    action: u32,
+    /// Discounted sum of the n rewards.
+    reward: f32,
+    /// γ^k for a bootstrapped transition of k steps, 0 for a terminal one.
+    discount: f32,
+}
+
+/// Where a stream (one environment of one actor) stands.
+#[derive(Debug, Clone, Default)]
+struct Stream {
+    episode: u64,
+    t: u32,
+    /// Frame of the latest observation, if the episode is running.
+    last_frame: Option<u64>,
+    /// Steps not yet turned into transitions: (observation frame, action, reward).
+    pending: VecDeque<(u64, u32, f32)>,
+}
+
+/// Transitions sampled for an update.
+#[derive(Debug, Clone, Default)]
+pub struct Sample {
+    /// Positions in the buffer, for priority updates.
+    pub slots: Vec<usize>,
+    /// Frames, concatenated, `frame_bytes` each.
+    pub images: Vec<u8>,
+    pub next_images: Vec<u8>,
+    /// (speed, d) of each observation.
+    pub scalars: Vec<[f32; 2]>,
+    pub next_scalars: Vec<[f32; 2]>,
+    pub actions: Vec<u32>,
+    pub rewards: Vec<f32>,
+    pub discounts: Vec<f32>,
+    /// Importance-sampling weights (1 for uniform replay).
+    pub weights: Vec<f32>,
+}
+
+/// The replay buffer.
+#[derive(Debug)]
+pub struct Replay {
+    cfg: ReplayConfig,
+    /// Frame ring: `frame_slots` frames; frame id `i` lives in slot `i % frame_slots`.
+    frames: Vec<u8>,
+    frame_scalars: Vec<[f32; 2]>,
+    frame_slots: usize,
+    /// Ids of the oldest and next frame.
+    first_frame: u64,
+    next_frame: u64,
+    /// Transition ring (FIFO).
+    transitions: VecDeque<Transition>,
+    /// Transition ids: the front of `transitions` has id `first_transition`.
+    first_transition: u64,
+    streams: HashMap<(String, u32), Stream>,
+    priorities: Option<SumTree>,
+    max_priority: f32,
+    rng: ChaCha8Rng,
+}
+
+/// Per-transition bookkeeping bytes (counted against the byte cap).
+const TRANSITION_BYTES: u64 = std::mem::size_of::<Transition>() as u64 + 8;
+
+impl Replay {
+    /// An empty buffer. Frame slots: enough for the capacity plus one per 8 transitions (episode
+    /// starts), or fewer if the byte cap says so.
+    #[must_use]
+    pub fn new(cfg: ReplayConfig) -> Self {
+        let per_frame = cfg.frame_bytes as u64 + 8;
+        let by_bytes = (cfg.max_bytes.saturating_sub(cfg.capacity as u64 * TRANSITION_BYTES) / per_frame.max(1)) as usize;
+        let frame_slots = (cfg.capacity + cfg.capacity / 8 + 64).min(by_bytes).max(2);
+        let priorities = cfg.prioritized.then(|| SumTree::new(cfg.capacity));
+        let rng = ChaCha8Rng::seed_from_u64(cfg.seed);
+        Self {
+            frames: vec![0; frame_slots * cfg.frame_bytes],
+            frame_scalars: vec![[0.0; 2]; frame_slots],
+            frame_slots,
+            first_frame: 0,
+            next_frame: 0,
+            transitions: VecDeque::with_capacity(cfg.capacity.min(1 << 20)),
+            first_transition: 0,
+            streams: HashMap::new(),
+            priorities,
+            max_priority: 1.0,
+            rng,
+            cfg,
+        }
+    }
+
+    /// Transitions stored.
+    #[must_use]
+    pub fn len(&self) -> usize {
+        self.transitions.len()
+    }
+
+    #[must_use]
+    pub fn is_empty(&self) -> bool {
+        self.transitions.is_empty()
+    }
+
+    /// Capacity in transitions.
+    #[must_use]
+    pub fn capacity(&self) -> usize {
+        self.cfg.capacity
+    }
+
+    /// Bytes in use (frames held and transitions).
+    #[must_use]
+    pub fn bytes(&self) -> u64 {
+        let frames = (self.next_frame - self.first_frame) * (self.cfg.frame_bytes as u64 + 8);
+        frames + self.transitions.len() as u64 * TRANSITION_BYTES
+    }
+
+    /// Frames held.
+    #[must_use]
+    pub fn frames_held(&self) -> u64 {
+        self.next_frame - self.first_frame
+    }
+
+    /// Adds the steps of one stream of `actor`, in order, and returns the transitions formed.
+    /// Steps must already be validated (image size, finite numbers, action range).
+    pub fn add_steps(&mut self, actor: &str, steps: &[StepRecord<'_>]) -> usize {
+        let mut stored = 0;
+        for s in steps {
+            let frame = self.push_frame(s.image, [s.speed, s.d]);
+            let key = (actor.to_owned(), s.env);
+            let mut stream = self.streams.remove(&key).unwrap_or_default();
+            let continues = s.t > 0 && stream.last_frame.is_some() && stream.episode == s.episode && stream.t + 1 == s.t;
+            if continues {
+                let prev = stream.last_frame.expect("checked above");
+                stream.pending.push_back((prev, s.action, s.reward));
+                if s.terminated || s.truncated {
+                    // Every pending step ends here: terminal ones without bootstrap.
+                    while !stream.pending.is_empty() {
+                        stored += self.emit(&mut stream, frame, s.terminated);
+                    }
+                } else if stream.pending.len() >= self.cfg.n_step {
+                    stored += self.emit(&mut stream, frame, false);
+                }
+            } else {
+                // A new episode, or a break in the stream (lost batches): start afresh here.
+                stream.pending.clear();
+            }
+            stream.episode = s.episode;
+            stream.t = s.t;
+            stream.last_frame = (!(s.terminated || s.truncated)).then_some(frame);
+            self.streams.insert(key, stream);
+        }
+        stored
+    }
+
+    /// Turns the oldest pending step of `stream` into a transition ending at frame `next`.
+    fn emit(&mut self, stream: &mut Stream, next: u64, terminal: bool) -> usize {
+        let (obs, action, _) = *stream.pending.front().expect("pending is not empty");
+        let mut reward = 0.0f32;
+        let mut g = 1.0f32;
+        for &(_, _, r) in &stream.pending {
+            reward += g * r;
+            g *= self.cfg.gamma;
+        }
+        stream.pending.pop_front();
+        if obs < self.first_frame {
+            return 0; // its frame was overwritten already
+        }
+        self.push_transition(Transition { obs, next, action, reward, discount: if terminal { 0.0 } else { g } });
+        1
+    }
+
+    fn push_frame(&mut self, image: &[u8], scalars: [f32; 2]) -> u64 {
+        let id = self.next_frame;
+        let slot = (id % self.frame_slots as u64) as usize;
+        let fb = self.cfg.frame_bytes;
+        self.frames[slot * fb..(slot + 1) * fb].copy_from_slice(image);
+        self.frame_scalars[slot] = scalars;
+        self.next_frame += 1;
+        if self.next_frame - self.first_frame > self.frame_slots as u64 {
+            self.first_frame += 1;
+            // Transitions are in frame order: drop those whose frames are gone.
+            while self.transitions.front().is_some_and(|t| t.obs < self.first_frame) {
+                self.pop_transition();
+            }
+        }
+        id
+    }
+
+    fn push_transition(&mut self, t: Transition) {
+        if self.transitions.len() == self.cfg.capacity {
+            self.pop_transition();
+        }
+        let id = self.first_transition + self.transitions.len() as u64;
+        self.transitions.push_back(t);
+        if let Some(tree) = self.priorities.as_mut() {
+            tree.set((id % self.cfg.capacity as u64) as usize, self.max_priority.powf(self.cfg.alpha));
+        }
+    }
+
+    fn pop_transition(&mut self) {
+        if self.transitions.pop_front().is_some() {
+            if let Some(tree) = self.priorities.as_mut() {
+                tree.set((self.first_transition % self.cfg.capacity as u64) as usize, 0.0);
+            }
+            self.first_transition += 1;
+        }
+    }
+
+    fn frame(&self, id: u64) -> (&[u8], [f32; 2]) {
+        let slot = (id % self.frame_slots as u64) as usize;
+        let fb = self.cfg.frame_bytes;
+        (&self.frames[slot * fb..(slot + 1) * fb], self.frame_scalars[slot])
+    }
+
+    /// Samples `n` transitions (with replacement). `None` when the buffer is empty.
+    pub fn sample(&mut self, n: usize) -> Option<Sample> {
+        if self.transitions.is_empty() {
+            return None;
+        }
+        let len = self.transitions.len();
+        let mut out = Sample::default();
+        let mut probs = Vec::with_capacity(n);
+        for _ in 0..n {
+            let (k, p) = match self.priorities.as_ref() {
+                Some(tree) => {
+                    let total = tree.total();
+                    let u = (self.rng.next_u32() as f64 / (u32::MAX as f64 + 1.0)) * total;
+                    let slot = tree.find(u);
+                    let k = (slot as u64 + self.cfg.capacity as u64 - self.first_transition % self.cfg.capacity as u64)
+                        % self.cfg.capacity as u64;
+                    ((k as usize).min(len - 1), tree.get(slot) as f64 / total)
+                }
+                None => ((self.rng.next_u64() % len as u64) as usize, 1.0 / len as f64),
+            };
+            let t = self.transitions[k];
+            let (img, sc) = self.frame(t.obs);
+            out.images.extend_from_slice(img);
+            out.scalars.push(sc);
+            let (img, sc) = self.frame(t.next);
+            out.next_images.extend_from_slice(img);
+            out.next_scalars.push(sc);
+            out.actions.push(t.action);
+            out.rewards.push(t.reward);
+            out.discounts.push(t.discount);
+            out.slots.push(((self.first_transition + k as u64) % self.cfg.capacity as u64) as usize);
+            probs.push(p);
+        }
+        out.weights = if self.priorities.is_some() {
+            let w: Vec<f64> = probs.iter().map(|p| (len as f64 * p.max(1e-12)).powf(-f64::from(self.cfg.beta))).collect();
+            let max = w.iter().copied().fold(f64::MIN, f64::max);
+            w.iter().map(|x| (x / max) as f32).collect()
+        } else {
+            vec![1.0; n]
+        };
+        Some(out)
+    }
+
+    /// Sets the priorities of sampled slots from their |TD errors| (prioritized replay only).
+    pub fn update_priorities(&mut self, slots: &[usize], td_abs: &[f32]) {
+        let Some(tree) = self.priorities.as_mut() else { return };
+        for (&slot, &e) in slots.iter().zip(td_abs) {
+            let p = e.abs() + 1e-3;
+            self.max_priority = self.max_priority.max(p);
+            if tree.get(slot) > 0.0 {
+                tree.set(slot, p.powf(self.cfg.alpha));
+            }
+        }
+    }
+}
+
+/// A sum tree over `n` leaves: set a leaf, read the total, find the leaf at a prefix sum.
+#[derive(Debug, Clone)]
+struct SumTree {
+    n: usize,
+    tree: Vec<f64>,
+}
+
+impl SumTree {
+    fn new(n: usize) -> Self {
+        let size = n.next_power_of_two();
+        Self { n: size, tree: vec![0.0; 2 * size] }
+    }
+
+    fn set(&mut self, leaf: usize, value: f32) {
+        let mut i = leaf + self.n;
+        self.tree[i] = f64::from(value);
+        while i > 1 {
+            i /= 2;
+            self.tree[i] = self.tree[2 * i] + self.tree[2 * i + 1];
+        }
+    }
+
+    fn get(&self, leaf: usize) -> f32 {
+        self.tree[leaf + self.n] as f32
+    }
+
+    fn total(&self) -> f64 {
+        self.tree[1]
+    }
+
+    /// The leaf where the running sum passes `u` (0 ≤ u < total).
+    fn find(&self, mut u: f64) -> usize {
+        let mut i = 1;
+        while i < self.n {
+            if u < self.tree[2 * i] || self.tree[2 * i + 1] <= 0.0 {
+                i *= 2;
+            } else {
+                u -= self.tree[2 * i];
+                i = 2 * i + 1;
+            }
+        }
+        i - self.n
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn cfg(capacity: usize) -> ReplayConfig {
+        ReplayConfig {
+            capacity,
+            max_bytes: 1 << 30,
+            frame_bytes: 4,
+            gamma: 0.5,
+            n_step: 1,
+            prioritized: false,
+            alpha: 0.6,
+            beta: 0.4,
+            seed: 1,
+        }
+    }
+
+    /// An episode of `len` steps whose frames are filled with the step index.
+    fn episode(episode: u64, len: u32, terminal: bool) -> Vec<(Vec<u8>, StepRecord<'static>)> {
+        (0..=len)
+            .map(|t| {
+                let rec = StepRecord {
+                    env: 0,
+                    episode,
+                    t,
+                    image: &[],
+                    speed: t as f32,
+                    d: 0.0,
+                    action: t % 3,
+                    reward: t as f32,
+                    terminated: terminal && t == len,
+                    truncated: !terminal && t == len,
+                };
+                (vec![t as u8; 4], rec)
+            })
+            .collect()
+    }
+
+    fn add(r: &mut Replay, steps: &[(Vec<u8>, StepRecord<'static>)]) -> usize {
+        let recs: Vec<StepRecord<'_>> = steps.iter().map(|(img, s)| StepRecord { image: img, ..s.clone() }).collect();
+        r.add_steps("a", &recs)
+    }
+
+    #[test]
+    fn frames_are_stored_once_and_transitions_link_them() {
+        let mut r = Replay::new(cfg(100));
+        assert_eq!(add(&mut r, &episode(0, 5, true)), 5);
+        // 6 observations (t = 0..5), 5 transitions: one frame per step, not two per transition.
+        assert_eq!((r.len(), r.frames_held()), (5, 6));
+        let s = r.sample(200).unwrap();
+        for i in 0..200 {
+            // Frame bytes carry t: next = obs + 1; reward of the step that led to next.
+            assert_eq!(s.next_images[i * 4], s.images[i * 4] + 1);
+            assert_eq!(s.rewards[i], f32::from(s.next_images[i * 4]));
+            let terminal = s.next_images[i * 4] == 5;
+            assert_eq!(s.discounts[i], if terminal { 0.0 } else { 0.5 }, "terminal transitions do not bootstrap");
+        }
+    }
+
+    #[test]
+    fn truncated_episodes_bootstrap() {
+        let mut r = Replay::new(cfg(100));
+        add(&mut r, &episode(0, 3, false));
+        let s = r.sample(100).unwrap();
+        assert!(s.discounts.iter().all(|&d| d == 0.5), "{:?}", s.discounts);
+    }
+
+    #[test]
+    fn n_step_returns_sum_discounted_rewards() {
+        let mut r = Replay::new(ReplayConfig { n_step: 3, ..cfg(100) });
+        // Rewards 1..=5 arrive with t = 1..=5; episode terminal at t = 5.
+        assert_eq!(add(&mut r, &episode(0, 5, true)), 5);
+        let s = r.sample(300).unwrap();
+        for i in 0..300 {
+            let obs = s.images[i * 4];
+            let next = s.next_images[i * 4];
+            // From t = obs: rewards obs+1, obs+2, … up to 3 of them or the end.
+            let k = (next - obs) as i32;
+            let expected: f32 = (0..k).map(|j| 0.5f32.powi(j) * f32::from(obs + 1 + j as u8)).sum();
+            assert!((s.rewards[i] - expected).abs() < 1e-6, "obs {obs} next {next}: {} vs {expected}", s.rewards[i]);
+            assert!(k == 3 || next == 5, "3-step except at the end");
+            assert_eq!(s.discounts[i], if next == 5 { 0.0 } else { 0.125 });
+        }
+    }
+
+    #[test]
+    fn eviction_is_fifo_and_bounded() {
+        let mut r = Replay::new(cfg(10));
+        for e in 0..10 {
+            add(&mut r, &episode(e, 5, true));
+        }
+        assert_eq!(r.len(), 10);
+        // Byte cap: 20 frames of 1000 bytes at most.
+        let mut small = Replay::new(ReplayConfig { frame_bytes: 1000, max_bytes: 20 * 1008 + 1000 * TRANSITION_BYTES, ..cfg(1000) });
+        let img = vec![7u8; 1000];
+        for t in 0..100u32 {
+            let rec = StepRecord {
+                env: 0,
+                episode: 0,
+                t,
+                image: &img,
+                speed: 0.0,
+                d: 0.0,
+                action: 0,
+                reward: 0.0,
+                terminated: false,
+                truncated: false,
+            };
+            small.add_steps("a", &[rec]);
+        }
+        assert!(small.frames_held() <= 20, "{}", small.frames_held());
+        assert!(small.bytes() <= 20 * 1008 + 1000 * TRANSITION_BYTES);
+        assert!(small.len() <= 19 && !small.is_empty());
+    }
+
+    #[test]
+    fn a_broken_stream_forms_no_transition_across_the_gap() {
+        let mut r = Replay::new(cfg(100));
+        let steps = episode(0, 6, true);
+        // Steps 0–2, then 4–6 (3 lost): transitions 0→1, 1→2, 4→5, 5→6 only.
+        let kept: Vec<_> = steps.iter().filter(|(_, s)| s.t != 3).cloned().collect();
+        assert_eq!(add(&mut r, &kept), 4);
+        let s = r.sample(100).unwrap();
+        assert!((0..100).all(|i| s.next_images[i * 4] == s.images[i * 4] + 1));
+    }
+
+    #[test]
+    fn prioritized_sampling_prefers_high_priorities_and_weights_correct_for_it() {
+        let mut r = Replay::new(ReplayConfig { prioritized: true, alpha: 1.0, beta: 1.0, ..cfg(8) });
+        add(&mut r, &episode(0, 4, true));
+        let s = r.sample(4).unwrap();
+        // Make transition of slot s.slots[0] 100× likelier than the others.
+        let all: Vec<usize> = (0..4).collect();
+        r.update_priorities(&all, &[0.001; 4]);
+        r.update_priorities(&[s.slots[0]], &[1.0]);
+        let s2 = r.sample(1000).unwrap();
+        let hits = s2.slots.iter().filter(|&&x| x == s.slots[0]).count();
+        assert!(hits > 900, "{hits} of 1000");
+        // The favoured transition has the smallest importance weight.
+        let w_fav = s2.weights[s2.slots.iter().position(|&x| x == s.slots[0]).unwrap()];
+        assert!(s2.weights.iter().all(|&w| w >= w_fav - 1e-6));
+    }
+}
