@@ -204,6 +204,7 @@ pub async fn start(opts: ServeOptions) -> Result<Running> {
     if let Some(m) = &opts.metrics_listen {
         let addr = resolve(m).await?;
         let listener = tokio::net::TcpListener::bind(addr).await.with_context(|| format!("binding metrics address {addr}"))?;
+        std::fs::write(run_dir.join("metrics.addr"), listener.local_addr()?.to_string())?;
         tracing::info!(addr = %listener.local_addr()?, "Prometheus metrics at http://{}/metrics", listener.local_addr()?);
         tokio::spawn(serve_prometheus(listener, shared.clone()));
     }

@@ -210,7 +210,16 @@ async fn a_token_is_required_when_configured() {
     let dir = tempfile::tempdir().unwrap();
     let token = dir.path().join("token");
     std::fs::write(&token, "s3cret\n").unwrap();
-    let running = start_tiny(dir.path(), false, Some(&token)).await;
+    let cfg_path = dir.path().join("run.toml");
+    std::fs::write(&cfg_path, tiny_config(&dir.path().join("run")).to_toml()).unwrap();
+    let running = start(ServeOptions {
+        config: Some(cfg_path),
+        auth_token_file: Some(token.clone()),
+        metrics_listen: Some("127.0.0.1:0".into()),
+        ..ServeOptions::default()
+    })
+    .await
+    .unwrap();
     let mut c = client(&running).await;
     let err = c.status(pb::StatusRequest {}).await.unwrap_err();
     assert_eq!(err.code(), Code::Unauthenticated);
@@ -218,5 +227,16 @@ async fn a_token_is_required_when_configured() {
     assert!(authed.status(pb::StatusRequest {}).await.is_ok());
     let mut wrong = learner::status::connect(&running.addr.to_string(), Some("nope".into())).await.unwrap();
     assert_eq!(wrong.status(pb::StatusRequest {}).await.unwrap_err().code(), Code::Unauthenticated);
+
+    // The Prometheus endpoint answers plain HTTP with the text format.
+    let addr = std::fs::read_to_string(dir.path().join("run/metrics.addr")).unwrap();
+    let mut sock = tokio::net::TcpStream::connect(addr.trim()).await.unwrap();
+    use tokio::io::{AsyncReadExt, AsyncWriteExt};
+    sock.write_all(b"GET /metrics HTTP/1.1\r\nHost: x\r\n\r\n").await.unwrap();
+    let mut body = String::new();
+    sock.read_to_string(&mut body).await.unwrap();
+    assert!(body.starts_with("HTTP/1.1 200 OK"), "{body}");
+    assert!(body.contains("# TYPE learner_updates_total counter\nlearner_updates_total 0\n"), "{body}");
+    assert!(body.contains("learner_weights_version 1\n"), "{body}");
     running.stop().await.unwrap();
 }
