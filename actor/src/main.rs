@@ -5,15 +5,42 @@ mod bench;
 mod drive;
 mod policy;
 mod record;
+mod run;
 
 use anyhow::Result;
 use clap::{Parser, Subcommand};
 
 #[derive(Debug, Parser)]
-#[command(name = "actor", version, about = "Drives the simulator: reference runs, evaluation and benchmarks.")]
+#[command(
+    name = "actor",
+    version,
+    about = "Drives the simulator: as an actor of a learner (`actor --learner ADDR`), or for reference runs, recording and benchmarks.",
+    args_conflicts_with_subcommands = true
+)]
 struct Cli {
     #[command(subcommand)]
-    command: Command,
+    command: Option<Command>,
+    /// Learner to serve, host:port or http://host:port: run as an actor.
+    #[arg(long)]
+    learner: Option<String>,
+    /// Environments this actor runs (one batched inference for all).
+    #[arg(long, default_value_t = 4)]
+    envs: usize,
+    /// A name for this actor (it keeps its index, and so its exploration rate, across reconnects).
+    #[arg(long)]
+    id: Option<String>,
+    /// Token file, if the learner requires one.
+    #[arg(long)]
+    auth_token_file: Option<std::path::PathBuf>,
+    /// Steps per batch sent to the learner.
+    #[arg(long, default_value_t = 64)]
+    batch_steps: usize,
+    /// Steps kept while the learner is unreachable; beyond, the oldest are dropped and counted.
+    #[arg(long, default_value_t = 10_000)]
+    buffer_steps: usize,
+    /// Seed of the environments and exploration.
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
 }
 
 #[derive(Debug, Subcommand)]
@@ -30,8 +57,30 @@ fn main() -> Result<()> {
         .with_writer(std::io::stderr)
         .with_env_filter(tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "info".into()))
         .init();
-    match Cli::parse().command {
-        Command::Drive(args) => drive::run(&args),
-        Command::Bench(cmd) => bench::run(&cmd),
+    let cli = Cli::parse();
+    match cli.command {
+        Some(Command::Drive(args)) => drive::run(&args),
+        Some(Command::Bench(cmd)) => bench::run(&cmd),
+        None => {
+            let Some(learner) = cli.learner else {
+                anyhow::bail!("nothing to do: give --learner ADDR to run as an actor, or a subcommand (drive, bench); see --help");
+            };
+            let name = cli.id.unwrap_or_else(|| format!("{}-{}", hostname(), std::process::id()));
+            let opts = run::ActorOptions {
+                learner,
+                envs: cli.envs,
+                name,
+                auth_token_file: cli.auth_token_file,
+                batch_steps: cli.batch_steps.max(1),
+                buffer_steps: cli.buffer_steps.max(1),
+                seed: cli.seed,
+            };
+            tokio::runtime::Builder::new_multi_thread().worker_threads(2).enable_all().build()?.block_on(run::run(opts))
+        }
     }
+}
+
+/// This machine's name, for default actor names.
+fn hostname() -> String {
+    std::fs::read_to_string("/etc/hostname").map(|s| s.trim().to_owned()).ok().filter(|s| !s.is_empty()).unwrap_or_else(|| "actor".into())
 }

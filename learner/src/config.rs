@@ -62,11 +62,13 @@ pub struct AgentConfig {
     pub epsilon_start: f32,
     pub epsilon_end: f32,
     pub epsilon_decay_steps: u64,
-    /// Per-actor ε (Ape-X: ε_i = ε^(1 + α·i/(N−1))) instead of the schedule (default false).
+    /// Per-actor ε (Ape-X: ε_i = ε^(1 + α·i/(N−1)), i the actor's index, N = `apex_actors`)
+    /// instead of the schedule (default false; ε = 0.4, α = 7, N = 8).
     pub per_actor_epsilon: bool,
     pub apex_epsilon: f32,
     pub apex_alpha: f32,
-    /// Updates between weight publications to actors (default 100).
+    pub apex_actors: u32,
+    /// Updates between weight publications to actors (default 10).
     pub publish_every_updates: u64,
     /// Seed of network initialisation and replay sampling (default 0).
     pub seed: u64,
@@ -99,7 +101,8 @@ impl Default for AgentConfig {
             per_actor_epsilon: false,
             apex_epsilon: 0.4,
             apex_alpha: 7.0,
-            publish_every_updates: 100,
+            apex_actors: 8,
+            publish_every_updates: 10,
             seed: 0,
         }
     }
@@ -230,6 +233,9 @@ impl RunConfig {
         if !(a.apex_alpha.is_finite() && a.apex_alpha >= 0.0) {
             return bad("apex_alpha", format!("{} must be >= 0", a.apex_alpha));
         }
+        if a.apex_actors == 0 {
+            return bad("apex_actors", "must be at least 1".into());
+        }
         if a.publish_every_updates == 0 {
             return bad("publish_every_updates", "must be at least 1".into());
         }
@@ -250,6 +256,20 @@ impl RunConfig {
             return Err(("env.camera".into(), "the agent drives from the camera: a camera must be configured".into()));
         }
         Ok(())
+    }
+
+    /// The exploration rate of actor `index`: Ape-X's per-actor ε when configured, else the
+    /// linear schedule after `env_steps` steps.
+    #[must_use]
+    pub fn epsilon(&self, index: u32, env_steps: u64) -> f32 {
+        let a = &self.agent;
+        if a.per_actor_epsilon {
+            let n = a.apex_actors.max(2) - 1;
+            a.apex_epsilon.powf(1.0 + a.apex_alpha * (index.min(n)) as f32 / n as f32)
+        } else {
+            let frac = (env_steps as f32 / a.epsilon_decay_steps.max(1) as f32).min(1.0);
+            a.epsilon_start + (a.epsilon_end - a.epsilon_start) * frac
+        }
     }
 
     /// Scalar inputs of the network besides the image: speed, and d for the hybrid agent.

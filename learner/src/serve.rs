@@ -103,7 +103,16 @@ impl Running {
     pub async fn stop(self) -> Result<PathBuf> {
         self.shared.shutdown.store(true, Ordering::SeqCst);
         let _ = self.stop_server.send(());
-        self.server.await.context("joining the gRPC server")??;
+        // Graceful shutdown waits for open calls; actors' experience streams end at their next
+        // batch (see `service.rs`), but do not wait on a silent one for ever.
+        let mut server = self.server;
+        match tokio::time::timeout(Duration::from_secs(3), &mut server).await {
+            Ok(joined) => joined.context("joining the gRPC server")??,
+            Err(_) => {
+                tracing::warn!("open connections did not close within 3 s: closing them");
+                server.abort();
+            }
+        }
         let trainer = self.trainer;
         let dqn =
             tokio::task::spawn_blocking(move || trainer.join()).await?.map_err(|_| anyhow::anyhow!("the training thread panicked"))??;

@@ -81,6 +81,11 @@ impl Learner for LearnerService {
         let (tx, rx) = tokio::sync::mpsc::channel(16);
         tokio::spawn(async move {
             while let Some(item) = incoming.next().await {
+                if shared.stopping() {
+                    // Refuse new work while stopping: the actor keeps the batch and resends it.
+                    let _ = tx.send(Err(Status::unavailable("the learner is stopping; retry shortly"))).await;
+                    break;
+                }
                 let batch = match item {
                     Ok(b) => b,
                     Err(status) => {

@@ -108,8 +108,6 @@ impl Shared {
     /// The exploration rate of the configured schedule after `env_steps` steps.
     #[must_use]
     pub fn scheduled_epsilon(&self, env_steps: u64) -> f32 {
-        let a = &self.cfg.agent;
-        let frac = (env_steps as f32 / a.epsilon_decay_steps.max(1) as f32).min(1.0);
-        a.epsilon_start + (a.epsilon_end - a.epsilon_start) * frac
+        self.cfg.epsilon(0, env_steps)
     }
 }

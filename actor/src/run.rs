@@ -1,0 +1,416 @@
+//! `actor --learner ADDR`: one actor process. It registers with the learner (retrying with
+//! exponential backoff and jitter), runs N environments with the run's configuration, picks
+//! actions for all of them in one batched forward pass of the shared Q-network, explores
+//! ε-greedily, and streams the steps in batches. The network and the stepping loop never wait on
+//! the learner: steps go to a bounded outbox that a sender task drains, new weights are picked up
+//! between steps, and a lost learner only means buffering, counting what overflowed, and
+//! reconnecting. SIGINT/SIGTERM: stop stepping, flush what can be sent, exit 0.
+
+use std::collections::VecDeque;
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use anyhow::{Context, Result};
+use candle_core::{Device, Tensor};
+use learner::config::{AgentConfig, RunConfig};
+use learner::net::{NetShape, images_tensor, init_parameters, load_safetensors, network};
+use learner::status::{Client, connect};
+use proto::v1 as pb;
+use rand::{Rng, RngExt, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use sim_core::config::EnvConfig;
+use sim_core::env::Env;
+use sim_core::scenario::Scenario;
+use sim_core::town::Town;
+
+/// Options of an actor process.
+#[derive(Debug, Clone)]
+pub struct ActorOptions {
+    pub learner: String,
+    pub envs: usize,
+    pub name: String,
+    pub auth_token_file: Option<PathBuf>,
+    /// Steps per batch sent.
+    pub batch_steps: usize,
+    /// Steps the outbox keeps while the learner is away; older ones are dropped (and counted).
+    pub buffer_steps: usize,
+    pub seed: u64,
+}
+
+/// Steps waiting to be sent, bounded.
+#[derive(Debug, Default)]
+struct Outbox {
+    batches: VecDeque<(Vec<pb::Step>, Vec<pb::EpisodeSummary>, f32, u64)>,
+    steps: usize,
+    dropped: u64,
+}
+
+/// What the stepping thread and the network tasks share.
+#[derive(Debug)]
+struct Link {
+    outbox: Mutex<Outbox>,
+    /// Newest weights fetched and not yet loaded: (version, safetensors).
+    fresh_weights: Mutex<Option<(u64, Vec<u8>)>>,
+    /// Version the policy acts with.
+    acting_version: AtomicU64,
+    stop: AtomicBool,
+    connected: AtomicBool,
+    env_steps: AtomicU64,
+}
+
+/// Registers, retrying with exponential backoff (0.5 s doubling to 30 s, ±25 % jitter) until it
+/// succeeds or stop is requested.
+async fn register(
+    opts: &ActorOptions,
+    token: &Option<String>,
+    link: &Link,
+    envs: usize,
+    rng: &mut ChaCha8Rng,
+) -> Option<(Client, pb::RegisterResponse)> {
+    let mut delay = 0.5f64;
+    loop {
+        if link.stop.load(Ordering::SeqCst) {
+            return None;
+        }
+        let attempt = async {
+            let mut client = connect(&opts.learner, token.clone()).await?;
+            let reg = client
+                .register(pb::RegisterRequest { name: opts.name.clone(), envs: envs as u32, protocol: learner::service::PROTOCOL })
+                .await
+                .map_err(|s| anyhow::anyhow!("register: {}", s.message()))?
+                .into_inner();
+            anyhow::Ok((client, reg))
+        };
+        match attempt.await {
+            Ok(ok) => return Some(ok),
+            Err(err) => {
+                let wait = delay * rng.random_range(0.75..1.25);
+                tracing::warn!(learner = %opts.learner, error = %format!("{err:#}"), retry_in_secs = format!("{wait:.1}"), "learner unreachable");
+                sleep_unless_stopped(link, Duration::from_secs_f64(wait)).await;
+                delay = (delay * 2.0).min(30.0);
+            }
+        }
+    }
+}
+
+async fn sleep_unless_stopped(link: &Link, d: Duration) {
+    let end = Instant::now() + d;
+    while Instant::now() < end && !link.stop.load(Ordering::SeqCst) {
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
+}
+
+/// Runs the actor until SIGINT/SIGTERM.
+pub async fn run(opts: ActorOptions) -> Result<()> {
+    if opts.envs == 0 || opts.envs > 1024 {
+        anyhow::bail!("--envs {} must be 1..=1024", opts.envs);
+    }
+    let token = opts.auth_token_file.as_deref().map(learner::serve::read_token).transpose()?;
+    let link = Arc::new(Link {
+        outbox: Mutex::new(Outbox::default()),
+        fresh_weights: Mutex::new(None),
+        acting_version: AtomicU64::new(0),
+        stop: AtomicBool::new(false),
+        connected: AtomicBool::new(false),
+        env_steps: AtomicU64::new(0),
+    });
+    {
+        let link = link.clone();
+        tokio::spawn(async move {
+            learner::serve::shutdown_signal().await;
+            tracing::info!("stopping: flushing buffered steps");
+            link.stop.store(true, Ordering::SeqCst);
+        });
+    }
+    let mut rng = ChaCha8Rng::seed_from_u64(opts.seed ^ std::process::id() as u64);
+    let Some((client, reg)) = register(&opts, &token, &link, opts.envs, &mut rng).await else { return Ok(()) };
+    tracing::info!(actor_id = %reg.actor_id, index = reg.actor_index, run_id = %reg.run_id, envs = opts.envs, "registered");
+    let env_cfg: EnvConfig = toml::from_str(&reg.env_config_toml).context("the learner's [env] configuration")?;
+    let agent_cfg: AgentConfig = toml::from_str(&reg.agent_config_toml).context("the learner's [agent] configuration")?;
+    let run_cfg = RunConfig { env: env_cfg, agent: agent_cfg, ..RunConfig::default() };
+
+    // The stepping thread: environments and inference.
+    let stepper = {
+        let link = link.clone();
+        let cfg = run_cfg.clone();
+        let (envs, seed, index, batch_steps, buffer_steps) = (opts.envs, opts.seed, reg.actor_index, opts.batch_steps, opts.buffer_steps);
+        std::thread::Builder::new()
+            .name("step".into())
+            .spawn(move || step_loop(&cfg, &link, envs, seed, index, batch_steps, buffer_steps))?
+    };
+    link.connected.store(true, Ordering::SeqCst);
+    let weights = tokio::spawn(weights_loop(opts.clone(), token.clone(), link.clone(), reg.actor_id.clone(), client.clone()));
+    let progress = tokio::spawn(progress_loop(link.clone()));
+    send_loop(&opts, &token, &link, client, reg, &mut rng).await;
+    weights.abort();
+    progress.abort();
+    let stepped =
+        tokio::task::spawn_blocking(move || stepper.join()).await?.map_err(|_| anyhow::anyhow!("the stepping thread panicked"))?;
+    stepped?;
+    let ob = link.outbox.lock().expect("outbox lock");
+    tracing::info!(unsent_steps = ob.steps, dropped_steps = ob.dropped, env_steps = link.env_steps.load(Ordering::SeqCst), "actor stopped");
+    Ok(())
+}
+
+/// Streams outbox batches, re-registering and re-sending after any failure; after stop, flushes
+/// for up to 5 seconds.
+async fn send_loop(
+    opts: &ActorOptions,
+    token: &Option<String>,
+    link: &Arc<Link>,
+    mut client: Client,
+    mut reg: pb::RegisterResponse,
+    rng: &mut ChaCha8Rng,
+) {
+    let mut seq = 0u64;
+    let mut stop_deadline: Option<Instant> = None;
+    loop {
+        if link.stop.load(Ordering::SeqCst) {
+            let deadline = *stop_deadline.get_or_insert(Instant::now() + Duration::from_secs(5));
+            let empty = link.outbox.lock().expect("outbox lock").batches.is_empty();
+            if empty || Instant::now() > deadline {
+                return;
+            }
+        }
+        let (tx, rx) = tokio::sync::mpsc::channel::<pb::ExperienceBatch>(4);
+        let call = client.stream_experience(tokio_stream::wrappers::ReceiverStream::new(rx)).await;
+        let mut acks = match call {
+            Ok(r) => r.into_inner(),
+            Err(status) => {
+                tracing::warn!(%status, "experience stream refused; reconnecting");
+                link.connected.store(false, Ordering::SeqCst);
+                match reconnect(opts, token, link, rng).await {
+                    Some((c, r)) => (client, reg) = (c, r),
+                    None => return,
+                }
+                continue;
+            }
+        };
+        // Send the front batch, wait for its acknowledgement, pop it: nothing acknowledged is
+        // kept, nothing unacknowledged is lost.
+        let failed = loop {
+            let front = link.outbox.lock().expect("outbox lock").batches.front().cloned();
+            let Some((steps, episodes, epsilon, version)) = front else {
+                if link.stop.load(Ordering::SeqCst) {
+                    break false;
+                }
+                tokio::time::sleep(Duration::from_millis(20)).await;
+                continue;
+            };
+            seq += 1;
+            let dropped = std::mem::take(&mut link.outbox.lock().expect("outbox lock").dropped);
+            let batch = pb::ExperienceBatch {
+                actor_id: reg.actor_id.clone(),
+                seq,
+                steps,
+                episodes,
+                weights_version: version,
+                epsilon,
+                dropped_steps: dropped,
+            };
+            if tx.send(batch).await.is_err() {
+                break true;
+            }
+            match acks.message().await {
+                Ok(Some(_ack)) => {
+                    let mut ob = link.outbox.lock().expect("outbox lock");
+                    if let Some((s, _, _, _)) = ob.batches.pop_front() {
+                        ob.steps -= s.len();
+                    }
+                }
+                Ok(None) => break true,
+                Err(status) => {
+                    tracing::warn!(%status, "batch not accepted");
+                    if status.code() == tonic::Code::InvalidArgument || status.code() == tonic::Code::ResourceExhausted {
+                        // The learner will never take this batch: drop it, count it.
+                        let mut ob = link.outbox.lock().expect("outbox lock");
+                        if let Some((s, _, _, _)) = ob.batches.pop_front() {
+                            ob.steps -= s.len();
+                            ob.dropped += s.len() as u64;
+                        }
+                    }
+                    break true;
+                }
+            }
+        };
+        if !failed {
+            return;
+        }
+        link.connected.store(false, Ordering::SeqCst);
+        match reconnect(opts, token, link, rng).await {
+            Some((c, r)) => (client, reg) = (c, r),
+            None => return,
+        }
+    }
+}
+
+async fn reconnect(
+    opts: &ActorOptions,
+    token: &Option<String>,
+    link: &Link,
+    rng: &mut ChaCha8Rng,
+) -> Option<(Client, pb::RegisterResponse)> {
+    let r = register(opts, token, link, opts.envs, rng).await?;
+    tracing::info!(actor_id = %r.1.actor_id, "reconnected");
+    link.connected.store(true, Ordering::SeqCst);
+    Some(r)
+}
+
+/// Polls for new weights every second; never blocks the stepping thread.
+async fn weights_loop(opts: ActorOptions, token: Option<String>, link: Arc<Link>, actor_id: String, mut client: Client) {
+    loop {
+        if link.stop.load(Ordering::SeqCst) {
+            return;
+        }
+        let have = link.acting_version.load(Ordering::SeqCst);
+        match client.get_weights(pb::GetWeightsRequest { actor_id: actor_id.clone(), have_version: have }).await {
+            Ok(w) => {
+                let w = w.into_inner();
+                if !w.safetensors.is_empty() && w.version > have {
+                    *link.fresh_weights.lock().expect("weights lock") = Some((w.version, w.safetensors));
+                }
+            }
+            Err(_) => {
+                // The learner may be restarting: try a new connection next time.
+                if let Ok(c) = connect(&opts.learner, token.clone()).await {
+                    client = c;
+                }
+            }
+        }
+        sleep_unless_stopped(&link, Duration::from_secs(1)).await;
+    }
+}
+
+async fn progress_loop(link: Arc<Link>) {
+    let mut last = (Instant::now(), 0u64);
+    loop {
+        tokio::time::sleep(Duration::from_secs(10)).await;
+        let steps = link.env_steps.load(Ordering::SeqCst);
+        let rate = (steps - last.1) as f64 / last.0.elapsed().as_secs_f64();
+        last = (Instant::now(), steps);
+        let ob = link.outbox.lock().expect("outbox lock");
+        tracing::info!(
+            env_steps = steps,
+            steps_per_sec = format!("{rate:.0}"),
+            weights_version = link.acting_version.load(Ordering::SeqCst),
+            connected = link.connected.load(Ordering::SeqCst),
+            buffered_steps = ob.steps,
+            "progress"
+        );
+    }
+}
+
+/// The environments and the policy: runs until stop.
+fn step_loop(cfg: &RunConfig, link: &Link, n: usize, seed: u64, index: u32, batch_steps: usize, buffer_steps: usize) -> Result<()> {
+    let device = Device::Cpu;
+    let town = Town::default_town();
+    let cam = cfg.env.camera.clone().context("the run has no camera configured")?;
+    let shape = NetShape {
+        height: cam.height as usize,
+        width: cam.width as usize,
+        channels: usize::from(cam.channels()),
+        scalars: cfg.scalar_inputs(),
+        actions: cfg.agent.action_set.actions().len(),
+        filters: cfg.agent.conv_filters,
+        hidden: cfg.agent.hidden,
+    };
+    let vars = init_parameters(&shape, cfg.agent.seed, &device)?;
+    let net = network(&vars, shape, &device)?;
+    let actions = cfg.agent.action_set.actions();
+    let mut rng = ChaCha8Rng::seed_from_u64(seed ^ (u64::from(index) << 32));
+    let mut envs: Vec<Env> = (0..n).map(|_| Env::new(town.clone(), cfg.env.clone())).collect::<Result<_, _>>()?;
+    let mut episode = vec![0u64; n];
+    let mut t = vec![0u32; n];
+    let mut returns = vec![0f64; n];
+    let mut pending: Vec<pb::Step> = Vec::new();
+    let mut summaries: Vec<pb::EpisodeSummary> = Vec::new();
+    let obs_of = |env: &Env| -> pb::Observation {
+        let o = env.observation();
+        pb::Observation { image: o.image.map(|i| i.data).unwrap_or_default(), speed: o.speed, d: o.d.unwrap_or(0.0) }
+    };
+    let episode_seed = |rng: &mut ChaCha8Rng| rng.next_u64();
+    for (k, env) in envs.iter_mut().enumerate() {
+        env.reset(episode_seed(&mut rng), Scenario::Random)?;
+        pending.push(pb::Step { env: k as u32, episode: 0, t: 0, obs: Some(obs_of(env)), ..pb::Step::default() });
+    }
+    let mut total_steps = 0u64;
+    while !link.stop.load(Ordering::SeqCst) {
+        if let Some((version, bytes)) = link.fresh_weights.lock().expect("weights lock").take() {
+            match load_safetensors(&vars, &bytes, &device) {
+                Ok(()) => link.acting_version.store(version, Ordering::SeqCst),
+                Err(err) => tracing::warn!(%err, version, "weights refused"),
+            }
+        }
+        // One batched forward pass for all environments.
+        let images: Vec<Vec<u8>> = envs.iter().map(|e| e.image().data.clone()).collect();
+        let refs: Vec<&[u8]> = images.iter().map(Vec::as_slice).collect();
+        let scalars: Vec<f32> = envs
+            .iter()
+            .flat_map(|e| {
+                let o = e.observation();
+                learner::train::scalar_features(cfg, o.speed, o.d.unwrap_or(0.0))
+            })
+            .collect();
+        let q = net.forward(&images_tensor(&refs, &shape, &device)?, &Tensor::from_vec(scalars, (n, shape.scalars), &device)?)?;
+        let greedy: Vec<u32> = q.argmax(1)?.to_vec1()?;
+        let epsilon = cfg.epsilon(index, total_steps);
+        for (k, env) in envs.iter_mut().enumerate() {
+            let a = if rng.random::<f32>() < epsilon { rng.random_range(0..actions.len()) as u32 } else { greedy[k] };
+            let r = env.step(actions[a as usize])?;
+            t[k] += 1;
+            returns[k] += f64::from(r.reward);
+            pending.push(pb::Step {
+                env: k as u32,
+                episode: episode[k],
+                t: t[k],
+                obs: Some(obs_of(env)),
+                action: a,
+                reward: r.reward,
+                terminated: r.terminated,
+                truncated: r.truncated,
+            });
+            if r.terminated || r.truncated {
+                summaries.push(pb::EpisodeSummary {
+                    env: k as u32,
+                    episode: episode[k],
+                    episode_return: returns[k] as f32,
+                    steps: t[k],
+                    arrived: r.info.arrived,
+                    collision: r.info.collision.map(|c| c.name().to_owned()).unwrap_or_default(),
+                    scenario: "random".into(),
+                });
+                episode[k] += 1;
+                t[k] = 0;
+                returns[k] = 0.0;
+                env.reset(episode_seed(&mut rng), Scenario::Random)?;
+                pending.push(pb::Step { env: k as u32, episode: episode[k], t: 0, obs: Some(obs_of(env)), ..pb::Step::default() });
+            }
+        }
+        total_steps += n as u64;
+        link.env_steps.store(total_steps, Ordering::SeqCst);
+        if pending.len() >= batch_steps {
+            let steps = std::mem::take(&mut pending);
+            let eps = std::mem::take(&mut summaries);
+            let mut ob = link.outbox.lock().expect("outbox lock");
+            ob.steps += steps.len();
+            ob.batches.push_back((steps, eps, epsilon, link.acting_version.load(Ordering::SeqCst)));
+            // Bounded: drop the oldest batches while over the limit — never the front one, which
+            // may be in flight, nor the newest.
+            while ob.steps > buffer_steps && ob.batches.len() > 2 {
+                let (s, _, _, _) = ob.batches.remove(1).expect("more than two batches");
+                ob.steps -= s.len();
+                ob.dropped += s.len() as u64;
+                tracing::warn!(dropped = s.len(), "outbox full: oldest steps dropped");
+            }
+        }
+    }
+    // Hand over what is left for the final flush.
+    if !pending.is_empty() {
+        let mut ob = link.outbox.lock().expect("outbox lock");
+        ob.steps += pending.len();
+        ob.batches.push_back((pending, summaries, cfg.epsilon(index, total_steps), link.acting_version.load(Ordering::SeqCst)));
+    }
+    Ok(())
+}

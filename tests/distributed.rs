@@ -1,0 +1,139 @@
+//! Cross-process tests of distributed training: a learner (in this process, so that it can be
+//! stopped and resumed) and actor processes over loopback gRPC. Bounded in time: every wait has a
+//! deadline and fails with the status it last saw.
+
+use std::path::Path;
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use learner::config::RunConfig;
+use learner::serve::{Running, ServeOptions, start};
+use proto::v1 as pb;
+use sim_core::camera::CameraConfig;
+
+/// A run small enough to train in seconds: 16×16 gray camera, a tiny network.
+fn config(run_dir: &Path, listen: &str) -> RunConfig {
+    let mut cfg = RunConfig::default();
+    cfg.env.camera = Some(CameraConfig { width: 16, height: 16, ..CameraConfig::default() });
+    cfg.env.traffic.vehicles = 5;
+    cfg.agent.conv_filters = 2;
+    cfg.agent.hidden = 8;
+    cfg.agent.batch_size = 8;
+    cfg.agent.min_replay = 64;
+    cfg.agent.replay_capacity = 5000;
+    cfg.agent.replay_ratio = 0.5;
+    cfg.agent.publish_every_updates = 2;
+    cfg.service.listen = listen.into();
+    cfg.service.run_dir = run_dir.display().to_string();
+    cfg.service.checkpoint_interval_secs = 3600;
+    cfg.service.actor_timeout_secs = 2;
+    cfg
+}
+
+async fn start_learner(dir: &Path, listen: &str, resume: bool) -> Running {
+    let cfg_path = dir.join("run.toml");
+    std::fs::write(&cfg_path, config(&dir.join("run"), listen).to_toml()).unwrap();
+    start(ServeOptions { config: Some(cfg_path), resume, ..ServeOptions::default() }).await.unwrap()
+}
+
+fn spawn_actor(addr: &str, name: &str, log: &Path) -> Child {
+    let log = std::fs::File::create(log).unwrap();
+    Command::new(env!("CARGO_BIN_EXE_actor"))
+        .args(["--learner", addr, "--envs", "2", "--id", name, "--batch-steps", "16"])
+        .env("RUST_LOG", "info")
+        .stdout(Stdio::null())
+        .stderr(log)
+        .spawn()
+        .unwrap()
+}
+
+async fn status(addr: &str) -> pb::StatusResponse {
+    let mut c = learner::status::connect(addr, None).await.unwrap();
+    c.status(pb::StatusRequest {}).await.unwrap().into_inner()
+}
+
+/// Polls the status until `ok` holds, for at most `secs`.
+async fn wait_for(addr: &str, secs: u64, what: &str, ok: impl Fn(&pb::StatusResponse) -> bool) -> pb::StatusResponse {
+    let deadline = Instant::now() + Duration::from_secs(secs);
+    loop {
+        let s = status(addr).await;
+        if ok(&s) {
+            return s;
+        }
+        assert!(Instant::now() < deadline, "timed out waiting for {what}; last status: {s:#?}");
+        tokio::time::sleep(Duration::from_millis(200)).await;
+    }
+}
+
+fn actor<'a>(s: &'a pb::StatusResponse, name: &str) -> Option<&'a pb::ActorStatus> {
+    s.actors.iter().filter(|a| a.name == name).max_by(|x, y| x.last_seen_secs.total_cmp(&y.last_seen_secs).reverse())
+}
+
+/// A free loopback port (bound and released), so that a restarted learner can come back on it.
+fn free_port() -> String {
+    let l = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    l.local_addr().unwrap().to_string()
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn actors_train_survive_each_other_and_a_learner_restart() {
+    let dir = tempfile::tempdir().unwrap();
+    let addr = free_port();
+    let learner = start_learner(dir.path(), &addr, false).await;
+    let mut a = spawn_actor(&addr, "a", &dir.path().join("a.log"));
+    let mut b = spawn_actor(&addr, "b", &dir.path().join("b.log"));
+
+    // Both actors' transitions are counted and the weights version advances.
+    let s = wait_for(&addr, 120, "two actors feeding and new weights", |s| {
+        s.weights_version > 2 && ["a", "b"].iter().all(|n| actor(s, n).is_some_and(|x| x.transitions > 0))
+    })
+    .await;
+    assert_eq!(s.transitions_rejected, 0);
+
+    // A malformed batch from a third party is refused and disturbs no one.
+    let mut bad = learner::status::connect(&addr, None).await.unwrap();
+    let reg = bad.register(pb::RegisterRequest { name: "bad".into(), envs: 1, protocol: 1 }).await.unwrap().into_inner();
+    let step = pb::Step { obs: Some(pb::Observation { image: vec![0; 3], speed: 0.0, d: 0.0 }), ..pb::Step::default() };
+    let batch = pb::ExperienceBatch { actor_id: reg.actor_id, seq: 1, steps: vec![step], ..pb::ExperienceBatch::default() };
+    let mut acks = bad.stream_experience(tokio_stream::iter(vec![batch])).await.unwrap().into_inner();
+    assert_eq!(acks.message().await.unwrap_err().code(), tonic::Code::InvalidArgument);
+    let before = actor(&status(&addr).await, "a").unwrap().transitions;
+    wait_for(&addr, 60, "actor a still streaming after the bad batch", |s| actor(s, "a").is_some_and(|x| x.transitions > before)).await;
+
+    // kill -9 of one actor: the learner keeps training and the status shows it gone.
+    b.kill().unwrap();
+    b.wait().unwrap();
+    let step_then = status(&addr).await.learner_step;
+    wait_for(&addr, 60, "b disconnected while training continues", |s| {
+        actor(s, "b").is_some_and(|x| !x.connected) && s.learner_step > step_then
+    })
+    .await;
+
+    // The learner stops (checkpoint) and comes back with --resume on the same address: the actor
+    // reconnects by itself and the counters continue.
+    let stopped = status(&addr).await;
+    learner.stop().await.unwrap();
+    tokio::time::sleep(Duration::from_secs(2)).await;
+    let learner = start_learner(dir.path(), &addr, true).await;
+    let s = status(&addr).await;
+    assert_eq!(s.run_id, stopped.run_id);
+    assert!(s.learner_step >= stopped.learner_step && s.transitions_stored >= stopped.transitions_stored, "{s:#?} after {stopped:#?}");
+    wait_for(&addr, 90, "actor a back and streaming after the restart", |s| {
+        actor(s, "a").is_some_and(|x| x.connected && x.transitions > 0) && s.transitions_stored > stopped.transitions_stored
+    })
+    .await;
+
+    // SIGTERM: the actor flushes and exits 0.
+    let pid = a.id().to_string();
+    assert!(Command::new("kill").args(["-TERM", &pid]).status().unwrap().success());
+    let deadline = Instant::now() + Duration::from_secs(20);
+    let code = loop {
+        if let Some(st) = a.try_wait().unwrap() {
+            break st;
+        }
+        assert!(Instant::now() < deadline, "actor did not exit after SIGTERM");
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    };
+    assert!(code.success(), "actor exit status {code:?}; log:\n{}", std::fs::read_to_string(dir.path().join("a.log")).unwrap());
+    learner.stop().await.unwrap();
+}
