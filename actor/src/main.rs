@@ -6,6 +6,7 @@ mod drive;
 mod policy;
 mod record;
 mod run;
+mod train;
 
 use anyhow::Result;
 use clap::{Parser, Subcommand};
@@ -45,6 +46,9 @@ struct Cli {
 
 #[derive(Debug, Subcommand)]
 enum Command {
+    /// Train: a learner here and local actor processes, with live progress (Ctrl-C: checkpoint
+    /// and exit; the same command resumes).
+    Train(train::TrainArgs),
     /// Drive evaluation routes with a policy and report completions, collisions and returns.
     Drive(drive::DriveArgs),
     /// Benchmarks.
@@ -59,6 +63,9 @@ fn main() -> Result<()> {
         .init();
     let cli = Cli::parse();
     match cli.command {
+        Some(Command::Train(args)) => {
+            tokio::runtime::Builder::new_multi_thread().worker_threads(2).enable_all().build()?.block_on(train::run(&args))
+        }
         Some(Command::Drive(args)) => drive::run(&args),
         Some(Command::Bench(cmd)) => bench::run(&cmd),
         None => {

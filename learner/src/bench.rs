@@ -136,3 +136,67 @@ pub async fn ingest(seconds: f64) -> Result<serde_json::Value> {
     }
     Ok(serde_json::json!({ "transitions_per_sec": stored as f64 / secs }))
 }
+
+/// Runs a learner here (default configuration, so the paper network at the default camera) and
+/// `actors` actor processes (the `actor` program next to this one) for `seconds`, and measures
+/// what they produce: environment steps per second, updates per second, and the mean lag
+/// between the newest weights and the weights actors act with (sampled every second).
+pub async fn e2e(actors: usize, envs: usize, seconds: f64) -> Result<serde_json::Value> {
+    let exe = std::env::current_exe()?;
+    let actor_exe = exe.with_file_name(if cfg!(windows) { "actor.exe" } else { "actor" });
+    if !actor_exe.exists() {
+        bail!("the actor program is not next to this one ({}): build it with `cargo build --release -p actor`", actor_exe.display());
+    }
+    let dir = std::env::temp_dir().join(format!("learner-bench-e2e-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let running = start(ServeOptions { listen: Some("127.0.0.1:0".into()), run_dir: Some(dir.clone()), ..ServeOptions::default() }).await?;
+    let addr = running.addr.to_string();
+    let mut children = Vec::new();
+    for k in 0..actors {
+        children.push(
+            std::process::Command::new(&actor_exe)
+                .args(["--learner", &addr, "--envs", &envs.to_string(), "--id", &format!("bench-{k}"), "--seed", &k.to_string()])
+                .stdout(std::process::Stdio::null())
+                .stderr(std::process::Stdio::null())
+                .spawn()
+                .with_context(|| format!("starting {}", actor_exe.display()))?,
+        );
+    }
+    // Warm-up: until every actor has delivered something.
+    let warm = Instant::now();
+    while running.shared.actors.lock().expect("actors lock").iter().filter(|a| a.transitions > 0).count() < actors {
+        if warm.elapsed() > Duration::from_secs(120) {
+            bail!("actors did not start streaming within 120 s");
+        }
+        tokio::time::sleep(Duration::from_millis(200)).await;
+    }
+    let counters = |r: &crate::serve::Running| {
+        let c = r.shared.counters.lock().expect("counters lock");
+        (c.env_steps, c.learner_step)
+    };
+    let (s0, u0) = counters(&running);
+    let t0 = Instant::now();
+    let mut lags = Vec::new();
+    while t0.elapsed().as_secs_f64() < seconds {
+        tokio::time::sleep(Duration::from_secs(1)).await;
+        let st = crate::service::status(&running.shared);
+        lags.extend(st.actors.iter().filter(|a| a.connected).map(|a| a.version_lag as f64));
+        tracing::info!(secs = t0.elapsed().as_secs(), env_steps = st.transitions_received, updates = st.learner_step, "benchmarking");
+    }
+    let (s1, u1) = counters(&running);
+    let secs = t0.elapsed().as_secs_f64();
+    for c in &mut children {
+        let _ = c.kill();
+        let _ = c.wait();
+    }
+    running.stop().await?;
+    let _ = std::fs::remove_dir_all(&dir);
+    let mean_lag = if lags.is_empty() { 0.0 } else { lags.iter().sum::<f64>() / lags.len() as f64 };
+    Ok(serde_json::json!({
+        "env_steps_per_sec": (s1 - s0) as f64 / secs,
+        "updates_per_sec": (u1 - u0) as f64 / secs,
+        "mean_weight_lag": mean_lag,
+        "actors": actors,
+        "envs_per_actor": envs,
+    }))
+}

@@ -93,6 +93,21 @@ enum BenchCommand {
         #[arg(long)]
         json: bool,
     },
+    /// Learner here plus N actor processes: {"env_steps_per_sec","updates_per_sec","mean_weight_lag"}.
+    E2e {
+        /// Actor processes (the `actor` program next to this one).
+        #[arg(long, default_value_t = 2)]
+        actors: usize,
+        /// Environments per actor.
+        #[arg(long, default_value_t = 4)]
+        envs: usize,
+        /// Seconds to measure (after every actor has started streaming).
+        #[arg(long, default_value_t = 30.0)]
+        seconds: f64,
+        /// Print one JSON object on the last line of stdout.
+        #[arg(long)]
+        json: bool,
+    },
     /// Transitions per second accepted over gRPC on loopback (84×84 gray): {"transitions_per_sec"}.
     Ingest {
         /// Seconds to stream.
@@ -167,6 +182,14 @@ fn main() -> Result<()> {
                     anyhow::bail!("--batch and --updates must be at least 1");
                 }
                 let v = tokio::task::spawn_blocking(move || learner::bench::train(input, batch, updates)).await??;
+                print_result(&v, json);
+                Ok(())
+            }
+            Command::Bench(BenchCommand::E2e { actors, envs, seconds, json }) => {
+                if actors == 0 || envs == 0 || !(seconds > 0.0 && seconds.is_finite()) {
+                    anyhow::bail!("--actors and --envs must be at least 1 and --seconds positive");
+                }
+                let v = learner::bench::e2e(actors, envs, seconds).await?;
                 print_result(&v, json);
                 Ok(())
             }
