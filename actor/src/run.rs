@@ -15,7 +15,7 @@ use std::time::{Duration, Instant};
 use anyhow::{Context, Result};
 use candle_core::{Device, Tensor};
 use learner::config::{AgentConfig, RunConfig};
-use learner::net::{NetShape, images_tensor, init_parameters, load_safetensors, network};
+use learner::net::{images_tensor, init_parameters, load_safetensors, network};
 use learner::status::{Client, connect};
 use proto::v1 as pb;
 use rand::{Rng, RngExt, SeedableRng};
@@ -306,16 +306,8 @@ async fn progress_loop(link: Arc<Link>) {
 fn step_loop(cfg: &RunConfig, link: &Link, n: usize, seed: u64, index: u32, batch_steps: usize, buffer_steps: usize) -> Result<()> {
     let device = Device::Cpu;
     let town = Town::default_town();
-    let cam = cfg.env.camera.clone().context("the run has no camera configured")?;
-    let shape = NetShape {
-        height: cam.height as usize,
-        width: cam.width as usize,
-        channels: usize::from(cam.channels()),
-        scalars: cfg.scalar_inputs(),
-        actions: cfg.agent.action_set.actions().len(),
-        filters: cfg.agent.conv_filters,
-        hidden: cfg.agent.hidden,
-    };
+    anyhow::ensure!(cfg.env.camera.is_some(), "the run has no camera configured");
+    let shape = learner::serve::net_shape(cfg);
     let vars = init_parameters(&shape, cfg.agent.seed, &device)?;
     let net = network(&vars, shape, &device)?;
     let actions = cfg.agent.action_set.actions();
