@@ -318,14 +318,14 @@ fn step_loop(cfg: &RunConfig, link: &Link, n: usize, seed: u64, index: u32, batc
     let mut returns = vec![0f64; n];
     let mut pending: Vec<pb::Step> = Vec::new();
     let mut summaries: Vec<pb::EpisodeSummary> = Vec::new();
-    let obs_of = |env: &Env| -> pb::Observation {
-        let o = env.observation();
+    // The wire form of an observation (it takes the image the environment already copied out).
+    let wire = |o: sim_core::env::Observation| -> pb::Observation {
         pb::Observation { image: o.image.map(|i| i.data).unwrap_or_default(), speed: o.speed, d: o.d.unwrap_or(0.0) }
     };
     let episode_seed = |rng: &mut ChaCha8Rng| rng.next_u64();
     for (k, env) in envs.iter_mut().enumerate() {
         env.reset(episode_seed(&mut rng), Scenario::Random)?;
-        pending.push(pb::Step { env: k as u32, episode: 0, t: 0, obs: Some(obs_of(env)), ..pb::Step::default() });
+        pending.push(pb::Step { env: k as u32, episode: 0, t: 0, obs: Some(wire(env.observation())), ..pb::Step::default() });
     }
     let mut total_steps = 0u64;
     while !link.stop.load(Ordering::SeqCst) {
@@ -336,15 +336,8 @@ fn step_loop(cfg: &RunConfig, link: &Link, n: usize, seed: u64, index: u32, batc
             }
         }
         // One batched forward pass for all environments.
-        let images: Vec<Vec<u8>> = envs.iter().map(|e| e.image().data.clone()).collect();
-        let refs: Vec<&[u8]> = images.iter().map(Vec::as_slice).collect();
-        let scalars: Vec<f32> = envs
-            .iter()
-            .flat_map(|e| {
-                let o = e.observation();
-                learner::train::scalar_features(cfg, o.speed, o.d.unwrap_or(0.0))
-            })
-            .collect();
+        let refs: Vec<&[u8]> = envs.iter().map(|e| e.image().data.as_slice()).collect();
+        let scalars: Vec<f32> = envs.iter().flat_map(|e| learner::train::scalar_features(cfg, e.ego.speed, e.tracking.d)).collect();
         let q = net.forward(&images_tensor(&refs, &shape, &device)?, &Tensor::from_vec(scalars, (n, shape.scalars), &device)?)?;
         let greedy: Vec<u32> = q.argmax(1)?.to_vec1()?;
         let epsilon = cfg.epsilon(index, total_steps);
@@ -357,7 +350,7 @@ fn step_loop(cfg: &RunConfig, link: &Link, n: usize, seed: u64, index: u32, batc
                 env: k as u32,
                 episode: episode[k],
                 t: t[k],
-                obs: Some(obs_of(env)),
+                obs: Some(wire(r.observation)),
                 action: a,
                 reward: r.reward,
                 terminated: r.terminated,
@@ -377,7 +370,13 @@ fn step_loop(cfg: &RunConfig, link: &Link, n: usize, seed: u64, index: u32, batc
                 t[k] = 0;
                 returns[k] = 0.0;
                 env.reset(episode_seed(&mut rng), Scenario::Random)?;
-                pending.push(pb::Step { env: k as u32, episode: episode[k], t: 0, obs: Some(obs_of(env)), ..pb::Step::default() });
+                pending.push(pb::Step {
+                    env: k as u32,
+                    episode: episode[k],
+                    t: 0,
+                    obs: Some(wire(env.observation())),
+                    ..pb::Step::default()
+                });
             }
         }
         total_steps += n as u64;

@@ -323,7 +323,7 @@ async fn report_loop(shared: Arc<Shared>) {
             let mut s = shared.stats.lock().expect("stats lock");
             s.updates_per_sec = 0.7 * s.updates_per_sec + 0.3 * updates.saturating_sub(last.1) as f64 / dt;
             s.env_steps_per_sec = 0.7 * s.env_steps_per_sec + 0.3 * steps.saturating_sub(last.2) as f64 / dt;
-            s.epsilon = f64::from(shared.scheduled_epsilon(steps));
+            s.epsilon = f64::from(shared.cfg.epsilon(0, steps));
         }
         last = (Instant::now(), updates, steps);
         tick += 1;

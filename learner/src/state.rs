@@ -104,10 +104,4 @@ impl Shared {
             }
         }
     }
-
-    /// The exploration rate of the configured schedule after `env_steps` steps.
-    #[must_use]
-    pub fn scheduled_epsilon(&self, env_steps: u64) -> f32 {
-        self.cfg.epsilon(0, env_steps)
-    }
 }

@@ -12,7 +12,7 @@ use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
 use crate::collision::Obb;
-use crate::map::{JunctionId, LaneId};
+use crate::map::LaneId;
 use crate::math::Vec2;
 use crate::town::Town;
 use crate::vehicle::VehicleParams;
@@ -435,12 +435,6 @@ impl Traffic {
             }
         }
         self.idm.accel(c.speed, v0, leader)
-    }
-
-    /// The junction and connector reserved by each holder (for debugging views and tests).
-    #[must_use]
-    pub fn holds(&self, town: &Town) -> Vec<(JunctionId, LaneId)> {
-        self.cars.iter().filter_map(|c| c.hold).filter_map(|h| town.map.lanes[h].connector_junction().map(|j| (j, h))).collect()
     }
 }
 

@@ -102,17 +102,6 @@ pub struct Lane {
     pub ends_at_junction: Option<JunctionId>,
 }
 
-impl Lane {
-    /// The junction this lane crosses, if it is a connector.
-    #[must_use]
-    pub fn connector_junction(&self) -> Option<JunctionId> {
-        match self.kind {
-            LaneKind::Connector { junction, .. } => Some(junction),
-            LaneKind::Road { .. } => None,
-        }
-    }
-}
-
 /// A junction: the area where roads meet, and the connectors across it.
 #[derive(Debug, Clone)]
 pub struct Junction {
