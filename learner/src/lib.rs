@@ -6,6 +6,7 @@ pub mod bench;
 pub mod checkpoint;
 pub mod config;
 pub mod dqn;
+pub mod fastnet;
 pub mod metrics;
 pub mod net;
 pub mod plot;

@@ -1,0 +1,348 @@
+//! The paper's Q-network (see `net`) computed on the CPU with the kernels of this module: the
+//! forward pass for inference and training, and the backward pass to every parameter's gradient.
+//!
+//! The convolution stack runs image by image, so the batch is split across threads with no
+//! synchronisation between layers; each thread keeps its own buffers and kernel-gradient partial
+//! sums (summed at the end, in a fixed order, so that results do not depend on timing). The dense
+//! layers run on the whole batch with `gemm`'s own threads. A batch smaller than the thread count
+//! (actors' inference) runs in one part with `gemm`'s threads inside each convolution instead.
+
+use super::conv::{self, ConvGeom};
+use super::gemm::{View, matmul};
+use super::params::{CONV_B, CONV_W, FC1_B, FC1_W, FC2_B, FC2_W, Params, Q_B, Q_W};
+use super::pool::{self, Strided};
+use crate::net::NetShape;
+
+/// The buffers of one thread's share of the batch.
+#[derive(Debug, Default)]
+struct Part {
+    /// First image of the batch and number of images.
+    start: usize,
+    images: usize,
+    /// Padded input of each layer, per image.
+    input: [Vec<f32>; 3],
+    /// Convolution output (before bias and ReLU) of each layer, per image.
+    pre: [Vec<f32>; 3],
+    /// Padded gradient of each layer's pre-activation, per image (allocated on first backward).
+    grad_padded: [Vec<f32>; 3],
+    /// Gradient of layers 2 and 3's input, conv-out layout, per image.
+    in_grad: [Vec<f32>; 3],
+    patches: Vec<f32>,
+    /// Kernel (k-major) and bias gradient partial sums.
+    dk: [Vec<f32>; 3],
+    db: [Vec<f32>; 3],
+}
+
+/// The network's computation and its reusable buffers; parameters are passed in.
+#[derive(Debug)]
+pub struct FastNet {
+    pub shape: NetShape,
+    geoms: [ConvGeom; 3],
+    threads: usize,
+    batch: usize,
+    parts: Vec<Part>,
+    /// Dense activations and their gradients, `batch × width`.
+    x: Vec<f32>,
+    h1: Vec<f32>,
+    h2: Vec<f32>,
+    q: Vec<f32>,
+    dx: Vec<f32>,
+    dh1: Vec<f32>,
+    dh2: Vec<f32>,
+    k_major: [Vec<f32>; 3],
+    flipped: [Vec<f32>; 3],
+}
+
+impl FastNet {
+    /// A network of `shape` using up to `threads` threads (at least 1).
+    #[must_use]
+    pub fn new(shape: NetShape, threads: usize) -> Self {
+        let (f, mut h, mut w) = (shape.filters, shape.height, shape.width);
+        let mut geoms = [ConvGeom { h, w, cin: shape.channels, cout: f }; 3];
+        for g in &mut geoms {
+            *g = ConvGeom { h, w, cin: if h == shape.height { shape.channels } else { f }, cout: f };
+            (h, w) = (h / 2, w / 2);
+        }
+        Self {
+            shape,
+            geoms,
+            threads: threads.max(1),
+            batch: 0,
+            parts: Vec::new(),
+            x: Vec::new(),
+            h1: Vec::new(),
+            h2: Vec::new(),
+            q: Vec::new(),
+            dx: Vec::new(),
+            dh1: Vec::new(),
+            dh2: Vec::new(),
+            k_major: Default::default(),
+            flipped: Default::default(),
+        }
+    }
+
+    /// Threads used.
+    #[must_use]
+    pub fn threads(&self) -> usize {
+        self.threads
+    }
+
+    fn flat(&self) -> usize {
+        self.shape.flat()
+    }
+
+    /// Sizes the buffers for `batch` images (kept when the batch size repeats).
+    fn prepare(&mut self, batch: usize) {
+        if batch == self.batch {
+            return;
+        }
+        self.batch = batch;
+        let n_parts = self.threads.min(batch).max(1);
+        self.parts = (0..n_parts)
+            .map(|p| {
+                let start = p * batch / n_parts;
+                let images = (p + 1) * batch / n_parts - start;
+                let mut part = Part { start, images, ..Part::default() };
+                for (l, g) in self.geoms.iter().enumerate() {
+                    part.input[l] = vec![0.0; images * g.padded_in()];
+                    part.pre[l] = vec![0.0; images * g.out_len()];
+                    part.dk[l] = vec![0.0; 9 * g.cin * g.cout];
+                    part.db[l] = vec![0.0; g.cout];
+                }
+                part.patches = vec![0.0; self.geoms.iter().map(|g| g.patches_len().max(g.transposed().patches_len())).max().unwrap_or(0)];
+                part
+            })
+            .collect();
+        let (flat, hidden, actions) = (self.flat(), self.shape.hidden, self.shape.actions);
+        self.x = vec![0.0; batch * flat];
+        self.h1 = vec![0.0; batch * hidden];
+        self.h2 = vec![0.0; batch * hidden];
+        self.q = vec![0.0; batch * actions];
+        self.dx = vec![0.0; batch * flat];
+        self.dh1 = vec![0.0; batch * hidden];
+        self.dh2 = vec![0.0; batch * hidden];
+    }
+
+    /// Q values (`batch × actions`, row-major) of `images` (`batch` frames of `H × W × C` bytes,
+    /// scaled by 1/255) and `scalars` (`batch × S`). Keeps the activations for [`Self::backward`].
+    ///
+    /// # Panics
+    /// If the slices' lengths do not fit the network's shape.
+    pub fn forward(&mut self, params: &Params, images: &[u8], scalars: &[f32]) -> &[f32] {
+        let s = self.shape;
+        let frame = s.height * s.width * s.channels;
+        let batch = images.len() / frame;
+        assert!(
+            images.len() == batch * frame && scalars.len() == batch * s.scalars,
+            "forward: {} image bytes, {} scalars",
+            images.len(),
+            scalars.len()
+        );
+        self.prepare(batch);
+        for (l, g) in self.geoms.iter().enumerate() {
+            conv::kernel_k_major(&params.values[CONV_W[l]], g, &mut self.k_major[l]);
+        }
+        let flat = self.flat();
+        let conv_flat = flat - s.scalars;
+        let gemm_threads = if self.parts.len() == 1 { self.threads } else { 1 };
+        let (geoms, k_major) = (&self.geoms, &self.k_major);
+        let n = self.parts.len();
+        let mut x_rest = &mut self.x[..];
+        std::thread::scope(|scope| {
+            for (i, part) in self.parts.iter_mut().enumerate() {
+                let (x, rest) = std::mem::take(&mut x_rest).split_at_mut(part.images * flat);
+                x_rest = rest;
+                let imgs = &images[part.start * frame..(part.start + part.images) * frame];
+                let mut work = move || part.forward(geoms, k_major, params, imgs, x, flat, gemm_threads);
+                if i + 1 == n { work() } else { drop(scope.spawn(work)) }
+            }
+        });
+        for (row, sc) in self.x.chunks_exact_mut(flat).zip(scalars.chunks_exact(s.scalars.max(1))) {
+            row[conv_flat..].copy_from_slice(&sc[..s.scalars]);
+        }
+        let (h, t) = (s.hidden, self.threads);
+        let b = batch;
+        dense(&mut self.h1, &self.x, &params.values[FC1_W], &params.values[FC1_B], b, flat, h, true, t);
+        dense(&mut self.h2, &self.h1, &params.values[FC2_W], &params.values[FC2_B], b, h, h, true, t);
+        dense(&mut self.q, &self.h2, &params.values[Q_W], &params.values[Q_B], b, h, s.actions, false, t);
+        &self.q
+    }
+
+    /// Gradients of every parameter (written into `grads`) given `dq`, the loss's gradient with
+    /// respect to the Q values of the last [`Self::forward`].
+    ///
+    /// # Panics
+    /// If `dq` does not match the last forward's batch.
+    pub fn backward(&mut self, params: &Params, dq: &[f32], grads: &mut Params) {
+        let s = self.shape;
+        let (b, h, a, flat, t) = (self.batch, s.hidden, s.actions, self.flat(), self.threads);
+        assert_eq!(dq.len(), b * a, "backward: dq for a batch of {b}");
+        // Dense layers, last to first: weight gradient = upstreamᵀ · input, bias = column sums,
+        // input gradient = upstream · weights, masked by the ReLU.
+        dense_grads(dq, &self.h2, b, a, h, weight_and_bias(grads, Q_W, Q_B), t);
+        back_through(&mut self.dh2, dq, &params.values[Q_W], b, a, h, Some(&self.h2), t);
+        dense_grads(&self.dh2, &self.h1, b, h, h, weight_and_bias(grads, FC2_W, FC2_B), t);
+        back_through(&mut self.dh1, &self.dh2, &params.values[FC2_W], b, h, h, Some(&self.h1), t);
+        dense_grads(&self.dh1, &self.x, b, h, flat, weight_and_bias(grads, FC1_W, FC1_B), t);
+        back_through(&mut self.dx, &self.dh1, &params.values[FC1_W], b, h, flat, None, t);
+
+        for l in 1..3 {
+            conv::kernel_flipped(&params.values[CONV_W[l]], &self.geoms[l], &mut self.flipped[l]);
+        }
+        let gemm_threads = if self.parts.len() == 1 { self.threads } else { 1 };
+        let (geoms, flipped, dx) = (&self.geoms, &self.flipped, &self.dx);
+        let n = self.parts.len();
+        std::thread::scope(|scope| {
+            for (i, part) in self.parts.iter_mut().enumerate() {
+                let dx = &dx[part.start * flat..(part.start + part.images) * flat];
+                let mut work = move || part.backward(geoms, flipped, params, dx, flat, gemm_threads);
+                if i + 1 == n { work() } else { drop(scope.spawn(work)) }
+            }
+        });
+        for (l, g) in self.geoms.iter().enumerate() {
+            let (w, bias) = (CONV_W[l], CONV_B[l]);
+            grads.values[w].fill(0.0);
+            grads.values[bias].fill(0.0);
+            for part in &self.parts {
+                conv::add_k_major_to_candle(&part.dk[l], g, &mut grads.values[w]);
+                for (d, &x) in grads.values[bias].iter_mut().zip(&part.db[l]) {
+                    *d += x;
+                }
+            }
+        }
+    }
+}
+
+impl Part {
+    /// The convolution stack of this part's images; writes each image's row of `x` (the conv part).
+    #[allow(clippy::too_many_arguments)]
+    fn forward(
+        &mut self,
+        geoms: &[ConvGeom; 3],
+        k_major: &[Vec<f32>; 3],
+        params: &Params,
+        images: &[u8],
+        x: &mut [f32],
+        flat: usize,
+        threads: usize,
+    ) {
+        let g0 = geoms[0];
+        let frame = g0.h * g0.w * g0.cin;
+        for (img, bytes) in images.chunks_exact(frame).enumerate() {
+            // Scale into the interior of the first padded input (its border stays zero).
+            let input = &mut self.input[0][img * g0.padded_in()..(img + 1) * g0.padded_in()];
+            let row = g0.pw() * g0.cin;
+            for (y, line) in bytes.chunks_exact(g0.w * g0.cin).enumerate() {
+                let o = (y + 1) * row + g0.cin;
+                for (d, &v) in input[o..o + line.len()].iter_mut().zip(line) {
+                    *d = f32::from(v) * (1.0 / 255.0);
+                }
+            }
+            for (l, g) in geoms.iter().enumerate() {
+                let (pi, po) = (g.padded_in(), g.out_len());
+                let pre = &mut self.pre[l][img * po..(img + 1) * po];
+                conv::forward(&self.input[l][img * pi..(img + 1) * pi], &k_major[l], g, pre, &mut self.patches, threads);
+                let bias = &params.values[CONV_B[l]];
+                if l < 2 {
+                    let next = &geoms[l + 1];
+                    let dst = &mut self.input[l + 1][img * next.padded_in()..(img + 1) * next.padded_in()];
+                    pool::forward(pre, bias, g.h, g.w, dst, Strided::padded(next.w, next.cin));
+                } else {
+                    let dst = &mut x[img * flat..(img + 1) * flat];
+                    pool::forward(pre, bias, g.h, g.w, dst, Strided::channel_major(g.h / 2, g.w / 2));
+                }
+            }
+        }
+    }
+
+    /// The backward pass of the convolution stack for this part's images, from their rows of
+    /// `dx`; leaves the partial kernel and bias gradients in `dk` and `db`.
+    fn backward(&mut self, geoms: &[ConvGeom; 3], flipped: &[Vec<f32>; 3], params: &Params, dx: &[f32], flat: usize, threads: usize) {
+        for (l, g) in geoms.iter().enumerate() {
+            self.dk[l].fill(0.0);
+            self.db[l].fill(0.0);
+            if self.grad_padded[l].len() != self.images * g.padded_out() {
+                self.grad_padded[l] = vec![0.0; self.images * g.padded_out()];
+            }
+            if l > 0 && self.in_grad[l].len() != self.images * g.in_grad_len() {
+                self.in_grad[l] = vec![0.0; self.images * g.in_grad_len()];
+            }
+        }
+        for img in 0..self.images {
+            for l in (0..3).rev() {
+                let g = &geoms[l];
+                let (pi, po, pg) = (g.padded_in(), g.out_len(), g.padded_out());
+                let pre = &self.pre[l][img * po..(img + 1) * po];
+                let grad_padded = &mut self.grad_padded[l][img * pg..(img + 1) * pg];
+                let bias = &params.values[CONV_B[l]];
+                if l == 2 {
+                    let from = Strided::channel_major(g.h / 2, g.w / 2);
+                    pool::backward(pre, bias, g.h, g.w, &dx[img * flat..(img + 1) * flat], from, grad_padded, &mut self.db[l]);
+                } else {
+                    let next = &geoms[l + 1];
+                    let len = next.in_grad_len();
+                    let upstream = &self.in_grad[l + 1][img * len..(img + 1) * len];
+                    pool::backward(pre, bias, g.h, g.w, upstream, Strided::conv_out(next.w, next.cin), grad_padded, &mut self.db[l]);
+                }
+                let input = &self.input[l][img * pi..(img + 1) * pi];
+                conv::kernel_grad(input, grad_padded, g, &mut self.dk[l], &mut self.patches, threads);
+                if l > 0 {
+                    let len = g.in_grad_len();
+                    conv::input_grad(
+                        grad_padded,
+                        &flipped[l],
+                        g,
+                        &mut self.in_grad[l][img * len..(img + 1) * len],
+                        &mut self.patches,
+                        threads,
+                    );
+                }
+            }
+        }
+    }
+}
+
+/// A layer's weight and bias gradients (bias right after weight in the parameter order).
+fn weight_and_bias(grads: &mut Params, w: usize, b: usize) -> (&mut [f32], &mut [f32]) {
+    assert_eq!(b, w + 1, "a bias follows its weight");
+    let (head, tail) = grads.values.split_at_mut(b);
+    (&mut head[w], &mut tail[0])
+}
+
+/// `out = act(input · Wᵀ + bias)` for a candle `Linear` weight `W` (`n × k`).
+#[allow(clippy::too_many_arguments)]
+fn dense(out: &mut [f32], input: &[f32], w: &[f32], bias: &[f32], b: usize, k: usize, n: usize, relu: bool, threads: usize) {
+    matmul(out, View::rows(0, b, n, n), false, input, View::rows(0, b, k, k), w, View::rows(0, n, k, k).t(), threads);
+    for row in out.chunks_exact_mut(n) {
+        for (o, &bv) in row.iter_mut().zip(bias) {
+            *o += bv;
+            if relu {
+                *o = o.max(0.0);
+            }
+        }
+    }
+}
+
+/// A dense layer's weight gradient `upstreamᵀ · input` (`n × k`) and bias gradient (column sums).
+#[allow(clippy::too_many_arguments)]
+fn dense_grads(upstream: &[f32], input: &[f32], b: usize, n: usize, k: usize, (dw, db): (&mut [f32], &mut [f32]), threads: usize) {
+    matmul(dw, View::rows(0, n, k, k), false, upstream, View::rows(0, b, n, n).t(), input, View::rows(0, b, k, k), threads);
+    db.fill(0.0);
+    for row in upstream.chunks_exact(n) {
+        for (d, &u) in db.iter_mut().zip(row) {
+            *d += u;
+        }
+    }
+}
+
+/// The gradient of a dense layer's input, `upstream · W` (`b × k`), masked by the ReLU that made
+/// the input when `relu_out` (the input itself) is given.
+#[allow(clippy::too_many_arguments)]
+fn back_through(out: &mut [f32], upstream: &[f32], w: &[f32], b: usize, n: usize, k: usize, relu_out: Option<&[f32]>, threads: usize) {
+    matmul(out, View::rows(0, b, k, k), false, upstream, View::rows(0, b, n, n), w, View::rows(0, n, k, k), threads);
+    if let Some(act) = relu_out {
+        for (o, &a) in out.iter_mut().zip(act) {
+            *o *= f32::from(u8::from(a > 0.0));
+        }
+    }
+}
