@@ -7,6 +7,8 @@ use clap::{Parser, Subcommand};
 use learner::serve::{ServeOptions, read_token, serve};
 use learner::status;
 
+mod health;
+
 #[derive(Debug, Parser)]
 #[command(name = "learner", version, about = "The DQN training service: replay, training, checkpoints, weights for actors, status.")]
 struct Cli {
@@ -50,6 +52,19 @@ enum Command {
         /// Token file, if the learner requires one.
         #[arg(long)]
         auth_token_file: Option<PathBuf>,
+    },
+    /// Check a learner through the standard gRPC health service (grpc.health.v1): exit 0 only when
+    /// it reports SERVING. For container health checks; needs no token.
+    Health {
+        /// The learner's address, host:port or http://host:port.
+        #[arg(long)]
+        addr: String,
+        /// Service to ask about (empty: the server as a whole; `hybriddrive.v1.Learner`: the learner).
+        #[arg(long, default_value = "")]
+        service: String,
+        /// Seconds to wait for the connection, and again for the answer.
+        #[arg(long, default_value_t = 3.0)]
+        timeout: f64,
     },
     /// Draw learning curves (normalised reward per episode like the paper's Figure 5, loss,
     /// mean Q) of one or more run directories into a PNG.
@@ -155,6 +170,14 @@ fn main() -> Result<()> {
                 } else {
                     status::print_table(&s);
                 }
+                Ok(())
+            }
+            Command::Health { addr, service, timeout } => {
+                if !(timeout > 0.0 && timeout.is_finite()) {
+                    anyhow::bail!("--timeout must be a positive number of seconds, not {timeout}");
+                }
+                health::check(&addr, &service, std::time::Duration::from_secs_f64(timeout)).await?;
+                println!("SERVING");
                 Ok(())
             }
             Command::Config { config } => {
