@@ -40,7 +40,7 @@ for b in "$target/release/learner" "$target/debug/learner"; do
 done
 
 "$venv/bin/python" - "$learner_bin" "${manifests[@]}" <<'EOF'
-import subprocess, sys, tempfile
+import os, subprocess, sys, tempfile
 import yaml
 
 learner_bin, files = sys.argv[1], sys.argv[2:]
@@ -110,9 +110,11 @@ if toml is not None and learner_bin:
     with tempfile.NamedTemporaryFile("w", suffix=".toml") as f:
         f.write(toml)
         f.flush()
-        r = subprocess.run([learner_bin, "config", "--config", f.name], capture_output=True, text=True)
+        env = dict(os.environ, RUST_BACKTRACE="0", RUST_LIB_BACKTRACE="0")
+        r = subprocess.run([learner_bin, "config", "--config", f.name], capture_output=True, text=True, env=env)
         check(r.returncode == 0, f"run.toml of the ConfigMap is refused by `learner config`: {r.stderr.strip()}")
-    print(f"validate-k8s: the ConfigMap's run.toml is a valid run configuration ({learner_bin})")
+    if r.returncode == 0:
+        print(f"validate-k8s: the ConfigMap's run.toml is a valid run configuration ({learner_bin})")
 elif toml is not None:
     print("validate-k8s: no learner binary built: the ConfigMap's run.toml was not checked")
 
