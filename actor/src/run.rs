@@ -13,9 +13,8 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result};
-use candle_core::{Device, Tensor};
 use learner::config::{AgentConfig, RunConfig};
-use learner::net::{images_tensor, init_parameters, load_safetensors, network};
+use learner::fastnet::Inference;
 use learner::status::{Client, connect};
 use proto::v1 as pb;
 use rand::{Rng, RngExt, SeedableRng};
@@ -304,12 +303,12 @@ async fn progress_loop(link: Arc<Link>) {
 
 /// The environments and the policy: runs until stop.
 fn step_loop(cfg: &RunConfig, link: &Link, n: usize, seed: u64, index: u32, batch_steps: usize, buffer_steps: usize) -> Result<()> {
-    let device = Device::Cpu;
     let town = Town::default_town();
     anyhow::ensure!(cfg.env.camera.is_some(), "the run has no camera configured");
     let shape = learner::serve::net_shape(cfg);
-    let vars = init_parameters(&shape, cfg.agent.seed, &device)?;
-    let net = network(&vars, shape, &device)?;
+    // One thread: an actor's batch is a few frames, and actors share the cores with each other
+    // and the learner.
+    let mut net = Inference::new(shape, cfg.agent.seed, 1)?;
     let actions = cfg.agent.action_set.actions();
     let mut rng = ChaCha8Rng::seed_from_u64(seed ^ (u64::from(index) << 32));
     let mut envs: Vec<Env> = (0..n).map(|_| Env::new(town.clone(), cfg.env.clone())).collect::<Result<_, _>>()?;
@@ -330,16 +329,14 @@ fn step_loop(cfg: &RunConfig, link: &Link, n: usize, seed: u64, index: u32, batc
     let mut total_steps = 0u64;
     while !link.stop.load(Ordering::SeqCst) {
         if let Some((version, bytes)) = link.fresh_weights.lock().expect("weights lock").take() {
-            match load_safetensors(&vars, &bytes, &device) {
+            match net.load(&bytes) {
                 Ok(()) => link.acting_version.store(version, Ordering::SeqCst),
                 Err(err) => tracing::warn!(%err, version, "weights refused"),
             }
         }
         // One batched forward pass for all environments.
-        let refs: Vec<&[u8]> = envs.iter().map(|e| e.image().data.as_slice()).collect();
         let scalars: Vec<f32> = envs.iter().flat_map(|e| learner::train::scalar_features(cfg, e.ego.speed, e.tracking.d)).collect();
-        let q = net.forward(&images_tensor(&refs, &shape, &device)?, &Tensor::from_vec(scalars, (n, shape.scalars), &device)?)?;
-        let greedy: Vec<u32> = q.argmax(1)?.to_vec1()?;
+        let greedy = net.greedy(envs.iter().map(|e| e.image().data.as_slice()), &scalars);
         let epsilon = cfg.epsilon(index, total_steps);
         for (k, env) in envs.iter_mut().enumerate() {
             let a = if rng.random::<f32>() < epsilon { rng.random_range(0..actions.len()) as u32 } else { greedy[k] };

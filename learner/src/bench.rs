@@ -3,14 +3,15 @@
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result, bail};
-use candle_core::{DType, Device, Tensor};
+use candle_core::{D, Device, Tensor};
 use proto::v1 as pb;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 use crate::config::{AgentConfig, RunConfig};
 use crate::dqn::{Batch, Dqn};
-use crate::net::NetShape;
+use crate::fastnet::{FastNet, Params};
+use crate::net::{NetShape, images_tensor, network};
 use crate::serve::{ServeOptions, start};
 
 /// Parses `WxHxC`, e.g. `84x84x3`.
@@ -25,39 +26,115 @@ pub fn parse_input(s: &str) -> Result<(usize, usize, usize), String> {
     Ok((w, h, c))
 }
 
+/// The system's 1-minute load average, to print beside timings (2-thread figures collapse on a
+/// busy machine).
+fn load_average() -> Option<f64> {
+    std::fs::read_to_string("/proc/loadavg").ok()?.split_whitespace().next()?.parse().ok()
+}
+
+/// A batch of random transitions for the paper's network at `shape`.
+fn random_batch(shape: &NetShape, batch: usize) -> Batch {
+    let mut rng = ChaCha8Rng::seed_from_u64(1);
+    let frame = shape.height * shape.width * shape.channels;
+    let mut bytes = |n: usize| -> Vec<u8> { (0..n).map(|_| (rng.next_u32() & 0xff) as u8).collect() };
+    let (images, next_images) = (bytes(batch * frame), bytes(batch * frame));
+    let mut rng = ChaCha8Rng::seed_from_u64(2);
+    let mut floats = |n: usize| -> Vec<f32> { (0..n).map(|_| rng.next_u32() as f32 / u32::MAX as f32).collect() };
+    Batch {
+        images,
+        next_images,
+        scalars: floats(batch * shape.scalars),
+        next_scalars: floats(batch * shape.scalars),
+        actions: (0..batch as u32).map(|i| i % shape.actions as u32).collect(),
+        rewards: floats(batch),
+        discounts: vec![0.99; batch],
+        weights: vec![1.0; batch],
+    }
+}
+
+/// Milliseconds per call of `f`, the median of `reps` timed calls after one warm-up call.
+fn median_ms(reps: usize, mut f: impl FnMut()) -> f64 {
+    f();
+    let mut t: Vec<f64> = (0..reps.max(1))
+        .map(|_| {
+            let s = Instant::now();
+            f();
+            s.elapsed().as_secs_f64() * 1000.0
+        })
+        .collect();
+    t.sort_by(f64::total_cmp);
+    t[t.len() / 2]
+}
+
 /// Times full DQN updates (online forward and backward, target forward on the next states,
-/// optimizer step) of the paper's network at `input` with batch `batch`.
-pub fn train(input: (usize, usize, usize), batch: usize, updates: usize) -> Result<serde_json::Value> {
+/// optimizer step) of the paper's network at `input` with batch `batch` on `threads` threads,
+/// and forward passes at batch 1 and at `batch`. With `reference`, also times candle's own
+/// implementation of the same update's forward and backward passes, in the same run.
+pub fn train(input: (usize, usize, usize), batch: usize, updates: usize, threads: usize, reference: bool) -> Result<serde_json::Value> {
     let (w, h, c) = input;
     let agent = AgentConfig::default();
     let shape = NetShape { height: h, width: w, channels: c, scalars: 2, actions: 6, filters: agent.conv_filters, hidden: agent.hidden };
-    let device = Device::Cpu;
-    let mut dqn = Dqn::new(shape, &agent, &device)?;
-    let mut rng = ChaCha8Rng::seed_from_u64(1);
-    let mut noise = |n: usize| -> Vec<f32> { (0..n).map(|_| rng.next_u32() as f32 / u32::MAX as f32).collect() };
-    let b = Batch {
-        images: Tensor::from_vec(noise(batch * c * h * w), (batch, c, h, w), &device)?,
-        scalars: Tensor::from_vec(noise(batch * 2), (batch, 2), &device)?,
-        actions: Tensor::from_vec((0..batch as u32).map(|i| i % 6).collect::<Vec<_>>(), batch, &device)?,
-        rewards: Tensor::from_vec(noise(batch), batch, &device)?,
-        next_images: Tensor::from_vec(noise(batch * c * h * w), (batch, c, h, w), &device)?,
-        next_scalars: Tensor::from_vec(noise(batch * 2), (batch, 2), &device)?,
-        discounts: Tensor::full(0.99f32, batch, &device)?,
-        weights: Tensor::ones(batch, DType::F32, &device)?,
-    };
-    dqn.update(&b)?; // warm-up
-    let start = Instant::now();
-    for i in 0..updates {
-        dqn.update(&b)?;
-        tracing::info!(update = i + 1, of = updates, "benchmarking");
-    }
-    let secs = start.elapsed().as_secs_f64();
-    Ok(serde_json::json!({
-        "updates_per_sec": updates as f64 / secs,
+    let load_before = load_average();
+    let mut dqn = Dqn::with_threads(shape, &agent, threads)?;
+    let b = random_batch(&shape, batch);
+    let ms = median_ms(updates, || {
+        dqn.update(&b);
+    });
+    tracing::info!(ms_per_update = ms, "fast update timed");
+    let mut net = FastNet::new(shape, threads);
+    let one = random_batch(&shape, 1);
+    let frame = h * w * c;
+    let forward_1 = median_ms(updates.max(20), || {
+        net.forward(&dqn.online, &one.images[..frame], &one.scalars);
+    });
+    let forward_b = median_ms(updates, || {
+        net.forward(&dqn.online, &b.images, &b.scalars);
+    });
+    let mut out = serde_json::json!({
+        "updates_per_sec": 1000.0 / ms,
         "batch": batch,
         "input": format!("{w}x{h}x{c}"),
-        "ms_per_update": secs * 1000.0 / updates as f64,
-    }))
+        "ms_per_update": ms,
+        "threads": threads,
+        "forward_batch1_ms": forward_1,
+        "forward_ms_per_sample": forward_b / batch as f64,
+        "implementation": "fastnet",
+        "load_before": load_before,
+        "load_after": load_average(),
+    });
+    if reference {
+        let candle_ms = median_ms(updates.min(3), || {
+            if let Err(e) = candle_step(&shape, &dqn.online, &b) {
+                tracing::error!("candle reference step: {e}");
+            }
+        });
+        tracing::info!(candle_ms_per_update = candle_ms, "candle reference timed");
+        out["candle_ms_per_update"] = serde_json::json!(candle_ms);
+        out["speedup_over_candle"] = serde_json::json!(candle_ms / ms);
+        out["load_after"] = serde_json::json!(load_average());
+    }
+    Ok(out)
+}
+
+/// candle's own forward and backward passes of one update (target forward on the next states,
+/// online forward, a clipped squared loss, backward): the "before" of the fast implementation. The optimizer
+/// step is left out, which only flatters candle.
+fn candle_step(shape: &NetShape, params: &Params, b: &Batch) -> candle_core::Result<()> {
+    let dev = Device::Cpu;
+    let vars = params.to_var_map()?;
+    let net = network(&vars, *shape, &dev)?;
+    let n = b.len();
+    let frame = shape.height * shape.width * shape.channels;
+    let images = |bytes: &[u8]| images_tensor(&bytes.chunks_exact(frame).collect::<Vec<_>>(), shape, &dev);
+    let scalars = |v: &[f32]| Tensor::from_slice(v, (n, shape.scalars), &dev);
+    let q_next = net.forward(&images(&b.next_images)?, &scalars(&b.next_scalars)?)?.max(D::Minus1)?.detach();
+    let y = (Tensor::from_slice(&b.rewards, n, &dev)? + (Tensor::from_slice(&b.discounts, n, &dev)? * q_next)?)?;
+    let q = net.forward(&images(&b.images)?, &scalars(&b.scalars)?)?;
+    let taken = q.gather(&Tensor::from_slice(&b.actions, (n, 1), &dev)?, 1)?.squeeze(1)?;
+    let td = (taken - y)?;
+    let loss = td.abs()?.minimum(1.0)?.sqr()?.mean_all()?;
+    loss.backward()?;
+    Ok(())
 }
 
 /// Streams batches of 64 transitions of 84×84 gray frames to an in-process learner on loopback for

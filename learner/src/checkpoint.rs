@@ -2,7 +2,7 @@
 //!
 //! Files (format version [`FORMAT_VERSION`]):
 //! - `online.safetensors`, `target.safetensors`: the parameters of the two networks
-//!   ([`net::to_safetensors`]);
+//!   ([`Params::to_safetensors`]);
 //! - `optimizer.safetensors`: Adam's moments, tensors `m.<param>` and `v.<param>` for every
 //!   parameter;
 //! - `state.json`: the [`Counters`], Adam's step count and learning rate, the format version;
@@ -27,12 +27,12 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
 
-use candle_core::{Device, Tensor, Var};
-use candle_nn::VarMap;
+use candle_core::Tensor;
 use serde::{Deserialize, Serialize};
 
 use crate::dqn::Dqn;
-use crate::net;
+use crate::fastnet::Params;
+use crate::fastnet::params::ParamsFileError;
 
 /// The format written, and the only one read.
 pub const FORMAT_VERSION: u32 = 1;
@@ -167,8 +167,8 @@ pub fn save(run_dir: &Path, dqn: &Dqn, counters: &Counters, config_toml: &str) -
     let final_dir = dir(run_dir);
     let serialise = |name: &str, reason: String| CheckpointError::Serialise { path: final_dir.join(name), reason };
 
-    let online = net::to_safetensors(&dqn.online_vars).map_err(|e| serialise(ONLINE, message(&e)))?;
-    let target = net::to_safetensors(&dqn.target_vars).map_err(|e| serialise(TARGET, message(&e)))?;
+    let online = dqn.online.to_safetensors("").map_err(|e| serialise(ONLINE, message(&e)))?;
+    let target = dqn.target.to_safetensors("").map_err(|e| serialise(TARGET, message(&e)))?;
     let optimizer = optimizer_safetensors(dqn).map_err(|e| serialise(OPTIMIZER, message(&e)))?;
     let state = State {
         version: FORMAT_VERSION,
@@ -254,18 +254,23 @@ pub fn load(run_dir: &Path, dqn: &mut Dqn) -> Result<Loaded, CheckpointError> {
     let config_toml = String::from_utf8(config)
         .map_err(|e| CheckpointError::Corrupt { path: dir.join(CONFIG), reason: format!("not UTF-8 text: {e}") })?;
 
-    let online = stage_parameters(&dqn.online_vars, &online, &dir.join(ONLINE), &dqn.device)?;
-    let target = stage_parameters(&dqn.target_vars, &target, &dir.join(TARGET), &dqn.device)?;
-    let moments = stage_moments(dqn, &optimizer, &dir.join(OPTIMIZER))?;
+    let decode = |bytes: &[u8], name: &str, prefix: &str| {
+        let path = dir.join(name);
+        Params::from_safetensors(dqn.shape, bytes, prefix).map_err(|e| match e {
+            ParamsFileError::NotSafetensors(_) => CheckpointError::Corrupt { path, reason: e.to_string() },
+            ParamsFileError::Mismatch(reason) => CheckpointError::Incompatible { path, reason },
+        })
+    };
+    let online = decode(&online, ONLINE, "")?;
+    let target = decode(&target, TARGET, "")?;
+    let m = decode(&optimizer, OPTIMIZER, "m.")?;
+    let v = decode(&optimizer, OPTIMIZER, "v.")?;
 
-    // Everything checked: commit. (Copies between maps of identical names and shapes.)
-    let commit = |path: &Path, e: candle_core::Error| CheckpointError::Incompatible { path: path.to_owned(), reason: message(&e) };
-    net::copy_parameters(&online, &dqn.online_vars).map_err(|e| commit(&dir.join(ONLINE), e))?;
-    net::copy_parameters(&target, &dqn.target_vars).map_err(|e| commit(&dir.join(TARGET), e))?;
-    for (slot, (m, v)) in dqn.adam.slots.iter_mut().zip(moments) {
-        slot.2 = m;
-        slot.3 = v;
-    }
+    // Everything checked: commit.
+    dqn.online = online;
+    dqn.target = target;
+    dqn.adam.m = m;
+    dqn.adam.v = v;
     dqn.adam.t = state.adam_t;
     dqn.updates = counters.learner_step;
     Ok(Loaded { counters, config_toml })
@@ -273,9 +278,12 @@ pub fn load(run_dir: &Path, dqn: &mut Dqn) -> Result<Loaded, CheckpointError> {
 
 /// Adam's moments as a safetensors file: `m.<param>` and `v.<param>` for every slot.
 fn optimizer_safetensors(dqn: &Dqn) -> candle_core::Result<Vec<u8>> {
-    let named: Vec<(String, &Tensor)> =
-        dqn.adam.slots.iter().flat_map(|(name, _, m, v)| [(format!("m.{name}"), m), (format!("v.{name}"), v)]).collect();
-    safetensors::serialize(named.iter().map(|(k, t)| (k.as_str(), *t)), None)
+    let mut named: Vec<(String, Tensor)> = Vec::new();
+    for (kind, moment) in [("m", &dqn.adam.m), ("v", &dqn.adam.v)] {
+        named.extend(moment.tensors()?.into_iter().map(|(name, t)| (format!("{kind}.{name}"), t)));
+    }
+    named.sort_by(|a, b| a.0.cmp(&b.0));
+    safetensors::serialize(named.iter().map(|(k, t)| (k.as_str(), t)), None)
         .map_err(|e| candle_core::Error::Msg(format!("serialising moments: {e}")))
 }
 
@@ -340,48 +348,6 @@ fn read_verified(dir: &Path) -> Result<[Vec<u8>; 5], CheckpointError> {
         *slot = bytes;
     }
     Ok(out)
-}
-
-/// The parameters of a safetensors file in a new map with the names and shapes of `like`. Names
-/// and shapes are checked in name order first (so that the error is the same every time), then
-/// [`net::load_safetensors`] reads the file into the new map.
-fn stage_parameters(like: &VarMap, bytes: &[u8], path: &Path, device: &Device) -> Result<VarMap, CheckpointError> {
-    let file = safetensors::SafeTensors::deserialize(bytes)
-        .map_err(|e| CheckpointError::Corrupt { path: path.to_owned(), reason: format!("not a safetensors file: {e}") })?;
-    let incompatible = |reason: String| CheckpointError::Incompatible { path: path.to_owned(), reason };
-    let staged = VarMap::new();
-    {
-        let src = like.data().lock().expect("var map lock");
-        let mut names: Vec<&String> = src.keys().collect();
-        names.sort();
-        let mut dst = staged.data().lock().expect("var map lock");
-        for name in names {
-            let var = &src[name];
-            let t = file.tensor(name).map_err(|_| incompatible(format!("lacks parameter `{name}`")))?;
-            if t.shape() != var.dims() {
-                return Err(incompatible(format!("parameter `{name}` has shape {:?}, expected {:?}", t.shape(), var.dims())));
-            }
-            dst.insert(name.clone(), Var::zeros(var.shape(), var.dtype(), device).map_err(|e| incompatible(message(&e)))?);
-        }
-    }
-    net::load_safetensors(&staged, bytes, device).map_err(|e| incompatible(message(&e)))?;
-    Ok(staged)
-}
-
-/// Adam's moments from a safetensors file, one (m, v) per slot of `dqn.adam`, shape-checked.
-fn stage_moments(dqn: &Dqn, bytes: &[u8], path: &Path) -> Result<Vec<(Tensor, Tensor)>, CheckpointError> {
-    let tensors = candle_core::safetensors::load_buffer(bytes, &dqn.device)
-        .map_err(|e| CheckpointError::Corrupt { path: path.to_owned(), reason: format!("not a safetensors file: {e}") })?;
-    let incompatible = |reason: String| CheckpointError::Incompatible { path: path.to_owned(), reason };
-    let moment = |kind: &str, name: &str, var: &Var| {
-        let key = format!("{kind}.{name}");
-        let t = tensors.get(&key).ok_or_else(|| incompatible(format!("lacks tensor `{key}`")))?;
-        if t.dims() != var.dims() {
-            return Err(incompatible(format!("tensor `{key}` has shape {:?}, expected {:?}", t.dims(), var.dims())));
-        }
-        t.to_dtype(var.dtype()).map_err(|e| incompatible(format!("tensor `{key}`: {}", message(&e))))
-    };
-    dqn.adam.slots.iter().map(|(name, var, _, _)| Ok((moment("m", name, var)?, moment("v", name, var)?))).collect()
 }
 
 /// Swaps the complete directory `tmp` in as `run_dir/checkpoint`.
@@ -454,12 +420,10 @@ fn io_error(path: &Path, action: &'static str) -> impl Fn(std::io::Error) -> Che
 
 #[cfg(test)]
 mod tests {
-    use candle_core::DType;
-
     use super::*;
     use crate::config::AgentConfig;
     use crate::dqn::{Batch, UpdateStats};
-    use crate::net::{NetShape, images_tensor, to_safetensors};
+    use crate::net::NetShape;
 
     fn shape() -> NetShape {
         NetShape { height: 8, width: 8, channels: 1, scalars: 2, actions: 2, filters: 2, hidden: 4 }
@@ -470,45 +434,30 @@ mod tests {
         AgentConfig { learning_rate: 1e-2, target_update_period: 3, seed: 7, ..AgentConfig::default() }
     }
 
-    fn batch(dqn: &Dqn) -> Batch {
-        let dev = &dqn.device;
+    fn batch() -> Batch {
         let n = 4;
-        let imgs: Vec<Vec<u8>> = (0..n).map(|i| (0..64).map(|p| ((p * 7 + i * 50) % 256) as u8).collect()).collect();
-        let refs: Vec<&[u8]> = imgs.iter().map(Vec::as_slice).collect();
-        let images = images_tensor(&refs, &dqn.shape, dev).unwrap();
-        let scalars = Tensor::zeros((n, 2), DType::F32, dev).unwrap();
+        let images: Vec<u8> = (0..n).flat_map(|i| (0..64).map(move |p| ((p * 7 + i * 50) % 256) as u8)).collect();
+        // The next observations are the batch in reverse order.
+        let next_images: Vec<u8> = images.chunks_exact(64).rev().flatten().copied().collect();
         Batch {
-            images: images.clone(),
-            scalars: scalars.clone(),
-            actions: Tensor::new(&[0u32, 1, 1, 0], dev).unwrap(),
-            rewards: Tensor::new(&[1.0f32, -0.5, 0.25, 0.0], dev).unwrap(),
-            next_images: images.flip_rows(),
-            next_scalars: scalars,
-            discounts: Tensor::new(&[0.9f32, 0.0, 0.9, 0.9], dev).unwrap(),
-            weights: Tensor::ones(n, DType::F32, dev).unwrap(),
-        }
-    }
-
-    trait FlipRows {
-        fn flip_rows(&self) -> Tensor;
-    }
-
-    impl FlipRows for Tensor {
-        /// The batch in reverse order (next observations differ from the observations).
-        fn flip_rows(&self) -> Tensor {
-            let n = self.dim(0).unwrap();
-            let idx = Tensor::from_vec((0..n as u32).rev().collect::<Vec<_>>(), n, self.device()).unwrap();
-            self.index_select(&idx, 0).unwrap()
+            images,
+            scalars: vec![0.0; 2 * n],
+            actions: vec![0, 1, 1, 0],
+            rewards: vec![1.0, -0.5, 0.25, 0.0],
+            next_images,
+            next_scalars: vec![0.0; 2 * n],
+            discounts: vec![0.9, 0.0, 0.9, 0.9],
+            weights: vec![1.0; n],
         }
     }
 
     /// An agent after 4 updates (target synced at update 3, so target ≠ online, and Adam's
     /// moments are non-zero).
     fn trained(shape: NetShape) -> Dqn {
-        let mut dqn = Dqn::new(shape, &cfg(), &Device::Cpu).unwrap();
-        let b = batch(&dqn);
+        let mut dqn = Dqn::new(shape, &cfg()).unwrap();
+        let b = batch();
         for _ in 0..4 {
-            dqn.update(&b).unwrap();
+            dqn.update(&b);
         }
         dqn
     }
@@ -535,8 +484,8 @@ mod tests {
     /// Everything of a Dqn that a checkpoint covers.
     fn snapshot(dqn: &Dqn) -> (Vec<u8>, Vec<u8>, Vec<u8>, u64, u64) {
         (
-            to_safetensors(&dqn.online_vars).unwrap(),
-            to_safetensors(&dqn.target_vars).unwrap(),
+            dqn.online.to_safetensors("").unwrap(),
+            dqn.target.to_safetensors("").unwrap(),
             optimizer_safetensors(dqn).unwrap(),
             dqn.adam.t,
             dqn.updates,
@@ -545,7 +494,7 @@ mod tests {
 
     /// A fresh agent of `shape` initialised from another seed than the saved one.
     fn fresh(shape: NetShape) -> Dqn {
-        Dqn::new(shape, &AgentConfig { seed: 8, ..cfg() }, &Device::Cpu).unwrap()
+        Dqn::new(shape, &AgentConfig { seed: 8, ..cfg() }).unwrap()
     }
 
     /// Replaces a file of a checkpoint and updates the manifest to match, so that the defect
@@ -590,8 +539,8 @@ mod tests {
             ["config.toml", "manifest.json", "online.safetensors", "optimizer.safetensors", "state.json", "target.safetensors"]
         );
         // The files hold exactly what the serialisers produce.
-        assert_eq!(fs::read(dir.join(ONLINE)).unwrap(), to_safetensors(&saved.online_vars).unwrap());
-        assert_eq!(fs::read(dir.join(TARGET)).unwrap(), to_safetensors(&saved.target_vars).unwrap());
+        assert_eq!(fs::read(dir.join(ONLINE)).unwrap(), saved.online.to_safetensors("").unwrap());
+        assert_eq!(fs::read(dir.join(TARGET)).unwrap(), saved.target.to_safetensors("").unwrap());
         assert_eq!(fs::read(dir.join(OPTIMIZER)).unwrap(), optimizer_safetensors(&saved).unwrap());
         assert_eq!(fs::read_to_string(dir.join(CONFIG)).unwrap(), CONFIG_TOML);
 
@@ -607,14 +556,14 @@ mod tests {
 
         // Resuming continues exactly: same losses, statistics and weights, through a target sync
         // (updates 5 and 6; the period is 3).
-        let b = batch(&saved);
+        let b = batch();
         for _ in 0..2 {
-            let a = saved.update(&b).unwrap();
-            let r = resumed.update(&b).unwrap();
+            let a = saved.update(&b);
+            let r = resumed.update(&b);
             assert_eq!(bits(&a), bits(&r));
             assert_eq!(snapshot(&resumed), snapshot(&saved));
         }
-        assert_eq!(to_safetensors(&saved.online_vars).unwrap(), to_safetensors(&saved.target_vars).unwrap(), "synced at update 6");
+        assert_eq!(saved.online.to_safetensors("").unwrap(), saved.target.to_safetensors("").unwrap(), "synced at update 6");
     }
 
     #[test]
@@ -751,7 +700,7 @@ mod tests {
         let tmp = tempfile::tempdir().unwrap();
         let mut dqn = trained(shape());
         save(tmp.path(), &dqn, &counters(), CONFIG_TOML).unwrap();
-        dqn.update(&batch(&dqn)).unwrap();
+        dqn.update(&batch());
         let second = Counters { learner_step: 5, env_steps: 2000, ..counters() };
         save(tmp.path(), &dqn, &second, "[agent]\ngamma = 0.8\n").unwrap();
         assert_eq!(entries(tmp.path()), ["checkpoint"]);

@@ -10,7 +10,6 @@ use std::sync::{Arc, Condvar, Mutex, RwLock};
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result, bail};
-use candle_core::Device;
 use proto::v1::learner_server::LearnerServer;
 use tonic::codec::CompressionEncoding;
 
@@ -18,7 +17,7 @@ use crate::checkpoint::{self, Counters};
 use crate::config::RunConfig;
 use crate::dqn::Dqn;
 use crate::metrics::{MetricsLog, serve_prometheus};
-use crate::net::{NetShape, to_safetensors};
+use crate::net::NetShape;
 use crate::replay::{Replay, ReplayConfig};
 use crate::service::LearnerService;
 use crate::state::{PublishedWeights, Shared, TrainStats};
@@ -155,8 +154,7 @@ pub async fn start(opts: ServeOptions) -> Result<Running> {
     let token = opts.auth_token_file.as_deref().map(read_token).transpose()?;
 
     let shape = net_shape(&cfg);
-    let device = Device::Cpu;
-    let mut dqn = Dqn::new(shape, &cfg.agent, &device)?;
+    let mut dqn = Dqn::new(shape, &cfg.agent)?;
     let mut counters = Counters::default();
     if opts.resume {
         let loaded = checkpoint::load(&run_dir, &mut dqn).with_context(|| format!("loading the checkpoint in {}", run_dir.display()))?;
@@ -180,7 +178,7 @@ pub async fn start(opts: ServeOptions) -> Result<Running> {
         beta: a.priority_beta,
         seed: a.seed ^ counters.learner_step,
     });
-    let weights = PublishedWeights { version: counters.weights_version.max(1), bytes: Arc::new(to_safetensors(&dqn.online_vars)?) };
+    let weights = PublishedWeights { version: counters.weights_version.max(1), bytes: Arc::new(dqn.online.to_safetensors("")?) };
     counters.weights_version = weights.version;
     let elapsed_before = counters.elapsed_secs;
     let shared = Arc::new(Shared {

@@ -6,12 +6,9 @@ use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use candle_core::{DType, Device, Tensor};
-
 use crate::checkpoint;
 use crate::config::RunConfig;
 use crate::dqn::{Batch, Dqn};
-use crate::net::{NetShape, images_tensor, to_safetensors};
 use crate::replay::Sample;
 use crate::state::{PublishedWeights, Shared};
 
@@ -26,33 +23,25 @@ pub fn scalar_features(cfg: &RunConfig, speed: f32, d: f32) -> Vec<f32> {
     }
 }
 
-/// Turns sampled transitions into tensors.
-pub fn make_batch(cfg: &RunConfig, shape: &NetShape, s: &Sample, device: &Device) -> candle_core::Result<Batch> {
-    let n = s.actions.len();
-    let fb = shape.height * shape.width * shape.channels;
-    let frames = |bytes: &[u8]| -> candle_core::Result<Tensor> {
-        let refs: Vec<&[u8]> = bytes.chunks_exact(fb).collect();
-        images_tensor(&refs, shape, device)
-    };
-    let scalars = |sc: &[[f32; 2]]| -> candle_core::Result<Tensor> {
-        let v: Vec<f32> = sc.iter().flat_map(|x| scalar_features(cfg, x[0], x[1])).collect();
-        Tensor::from_vec(v, (n, shape.scalars), device)
-    };
-    Ok(Batch {
-        images: frames(&s.images)?,
-        scalars: scalars(&s.scalars)?,
-        actions: Tensor::from_slice(&s.actions, n, device)?,
-        rewards: Tensor::from_slice(&s.rewards, n, device)?,
-        next_images: frames(&s.next_images)?,
-        next_scalars: scalars(&s.next_scalars)?,
-        discounts: Tensor::from_slice(&s.discounts, n, device)?,
-        weights: Tensor::from_slice(&s.weights, n, device)?.to_dtype(DType::F32)?,
-    })
+/// Turns sampled transitions into an update's batch (the frames are used as they are).
+#[must_use]
+pub fn make_batch(cfg: &RunConfig, s: Sample) -> Batch {
+    let scalars = |sc: &[[f32; 2]]| -> Vec<f32> { sc.iter().flat_map(|x| scalar_features(cfg, x[0], x[1])).collect() };
+    Batch {
+        scalars: scalars(&s.scalars),
+        next_scalars: scalars(&s.next_scalars),
+        images: s.images,
+        next_images: s.next_images,
+        actions: s.actions,
+        rewards: s.rewards,
+        discounts: s.discounts,
+        weights: s.weights,
+    }
 }
 
 /// Publishes the online weights as a new version.
 pub fn publish(shared: &Shared, dqn: &Dqn) -> anyhow::Result<u64> {
-    let bytes = to_safetensors(&dqn.online_vars)?;
+    let bytes = dqn.online.to_safetensors("")?;
     let mut w = shared.weights.write().expect("weights lock");
     let version = w.version + 1;
     *w = PublishedWeights { version, bytes: Arc::new(bytes) };
@@ -96,10 +85,10 @@ pub fn run(shared: &Arc<Shared>, mut dqn: Dqn, run_dir: &std::path::Path) -> any
             continue;
         }
         let Some(sample) = shared.replay.lock().expect("replay lock").sample(a.batch_size) else { continue };
-        let batch = make_batch(&shared.cfg, &dqn.shape, &sample, &dqn.device)?;
-        let stats = dqn.update(&batch)?;
+        let slots = if a.prioritized_replay { sample.slots.clone() } else { Vec::new() };
+        let stats = dqn.update(&make_batch(&shared.cfg, sample));
         if a.prioritized_replay {
-            shared.replay.lock().expect("replay lock").update_priorities(&sample.slots, &stats.td_abs);
+            shared.replay.lock().expect("replay lock").update_priorities(&slots, &stats.td_abs);
         }
         let smooth = |ema: Option<f64>, x: f32| Some(ema.map_or(f64::from(x), |e| 0.95 * e + 0.05 * f64::from(x)));
         loss_ema = smooth(loss_ema, stats.loss);

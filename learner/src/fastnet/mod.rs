@@ -8,14 +8,17 @@
 //! - [`conv`]: 3×3 convolution forward, kernel gradient and input gradient of one image.
 //! - [`pool`]: fused bias + ReLU + 2×2 average pooling and its backward pass.
 //! - [`model`]: the whole network, forward and backward, over a batch.
+//! - [`inference`]: acting: greedy actions for a batch of observations.
 //! - [`params`]: parameters in candle's layout, their files, and Adam.
 
 pub mod conv;
 pub mod gemm;
+pub mod inference;
 pub mod model;
 pub mod params;
 pub mod pool;
 
+pub use inference::Inference;
 pub use model::FastNet;
 pub use params::{Adam, Params};
 

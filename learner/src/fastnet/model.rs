@@ -186,8 +186,8 @@ impl FastNet {
         dense_grads(&self.dh1, &self.x, b, h, flat, weight_and_bias(grads, FC1_W, FC1_B), t);
         back_through(&mut self.dx, &self.dh1, &params.values[FC1_W], b, h, flat, None, t);
 
-        for l in 1..3 {
-            conv::kernel_flipped(&params.values[CONV_W[l]], &self.geoms[l], &mut self.flipped[l]);
+        for (l, g) in self.geoms.iter().enumerate().skip(1) {
+            conv::kernel_flipped(&params.values[CONV_W[l]], g, &mut self.flipped[l]);
         }
         let gemm_threads = if self.parts.len() == 1 { self.threads } else { 1 };
         let (geoms, flipped, dx) = (&self.geoms, &self.flipped, &self.dx);

@@ -19,6 +19,16 @@ pub const FC2_B: usize = 9;
 pub const Q_W: usize = 10;
 pub const Q_B: usize = 11;
 
+/// Why a weights file could not be read.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum ParamsFileError {
+    #[error("not a safetensors file: {0}")]
+    NotSafetensors(String),
+    /// A parameter is missing or has another shape than the network's.
+    #[error("{0}")]
+    Mismatch(String),
+}
+
 /// Every parameter of a network (or a gradient or moment of the same shape).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Params {
@@ -82,20 +92,27 @@ impl Params {
             .map_err(|e| candle_core::Error::Msg(format!("serialising parameters: {e}")))
     }
 
-    /// Parameters of `shape` read from a safetensors file (names with `prefix`), checking that each
-    /// is present with its shape. Errors name the parameter.
-    pub fn from_safetensors(shape: NetShape, bytes: &[u8], prefix: &str) -> Result<Self, String> {
+    /// Parameters of `shape` read from a safetensors file (names with `prefix`), checking in name
+    /// order that each is present with its shape, so that the error names the same parameter
+    /// every time.
+    pub fn from_safetensors(shape: NetShape, bytes: &[u8], prefix: &str) -> Result<Self, ParamsFileError> {
         let tensors: HashMap<String, Tensor> =
-            candle_core::safetensors::load_buffer(bytes, &Device::Cpu).map_err(|e| format!("not a safetensors file: {e}"))?;
+            candle_core::safetensors::load_buffer(bytes, &Device::Cpu).map_err(|e| ParamsFileError::NotSafetensors(e.to_string()))?;
+        let kind = if prefix.is_empty() { "parameter" } else { "tensor" };
         let mut p = Self::zeros(shape);
-        for ((name, dims), v) in p.names.iter().zip(&mut p.values) {
+        let mut order: Vec<usize> = (0..p.names.len()).collect();
+        order.sort_by(|&a, &b| p.names[a].0.cmp(&p.names[b].0));
+        for i in order {
+            let (name, dims) = &p.names[i];
             let key = format!("{prefix}{name}");
-            let t = tensors.get(&key).ok_or_else(|| format!("lacks tensor `{key}`"))?;
+            let t = tensors.get(&key).ok_or_else(|| ParamsFileError::Mismatch(format!("lacks {kind} `{key}`")))?;
             if t.dims() != dims.as_slice() {
-                return Err(format!("tensor `{key}` has shape {:?}, expected {dims:?}", t.dims()));
+                return Err(ParamsFileError::Mismatch(format!("{kind} `{key}` has shape {:?}, expected {dims:?}", t.dims())));
             }
-            *v =
-                t.to_dtype(candle_core::DType::F32).and_then(|t| t.flatten_all()?.to_vec1()).map_err(|e| format!("tensor `{key}`: {e}"))?;
+            p.values[i] = t
+                .to_dtype(candle_core::DType::F32)
+                .and_then(|t| t.flatten_all()?.to_vec1())
+                .map_err(|e| ParamsFileError::Mismatch(format!("{kind} `{key}`: {e}")))?;
         }
         Ok(p)
     }

@@ -70,6 +70,7 @@ pub fn forward(pre: &[f32], bias: &[f32], h: usize, w: usize, out: &mut [f32], t
 /// through `from`), writes the gradient of the pre-activation into the interior of the padded
 /// buffer `grad_padded` (`(h + 2) × (w + 2) × c`, whose border stays zero) and adds the bias
 /// gradient to `dbias`.
+#[allow(clippy::too_many_arguments)]
 pub fn backward(
     pre: &[f32],
     bias: &[f32],
