@@ -93,7 +93,9 @@ enum Command {
 
 #[derive(Debug, Subcommand)]
 enum BenchCommand {
-    /// Full DQN updates of the paper network: {"updates_per_sec","batch","input","ms_per_update"}.
+    /// Full DQN updates of the paper network: {"updates_per_sec","batch","input","ms_per_update",
+    /// "forward_batch1_ms","forward_ms_per_sample","threads","load_before","load_after"}, and with
+    /// --reference {"candle_ms_per_update","speedup_over_candle"}. Times are medians.
     Train {
         /// Input image WIDTHxHEIGHTxCHANNELS.
         #[arg(long, default_value = "84x84x3", value_parser = learner::bench::parse_input)]
@@ -102,8 +104,14 @@ enum BenchCommand {
         #[arg(long, default_value_t = 32)]
         batch: usize,
         /// Updates to time (after one warm-up update).
-        #[arg(long, default_value_t = 5)]
+        #[arg(long, default_value_t = 10)]
         updates: usize,
+        /// Threads (default: every core).
+        #[arg(long)]
+        threads: Option<usize>,
+        /// Also time candle's own convolution on the same update, in the same run.
+        #[arg(long)]
+        reference: bool,
         /// Print one JSON object on the last line of stdout.
         #[arg(long)]
         json: bool,
@@ -200,11 +208,12 @@ fn main() -> Result<()> {
                 println!("wrote {}", out.display());
                 Ok(())
             }
-            Command::Bench(BenchCommand::Train { input, batch, updates, json }) => {
-                if batch == 0 || updates == 0 {
-                    anyhow::bail!("--batch and --updates must be at least 1");
+            Command::Bench(BenchCommand::Train { input, batch, updates, threads, reference, json }) => {
+                if batch == 0 || updates == 0 || threads == Some(0) {
+                    anyhow::bail!("--batch, --updates and --threads must be at least 1");
                 }
-                let v = tokio::task::spawn_blocking(move || learner::bench::train(input, batch, updates)).await??;
+                let threads = threads.unwrap_or_else(learner::fastnet::default_threads);
+                let v = tokio::task::spawn_blocking(move || learner::bench::train(input, batch, updates, threads, reference)).await??;
                 print_result(&v, json);
                 Ok(())
             }
