@@ -224,6 +224,8 @@ pub async fn e2e(actors: usize, envs: usize, seconds: f64) -> Result<serde_json:
     if !actor_exe.exists() {
         bail!("the actor program is not next to this one ({}): build it with `cargo build --release -p actor`", actor_exe.display());
     }
+    let load_before = load_average();
+    let cfg_replay_ratio = f64::from(RunConfig::default().agent.replay_ratio);
     let dir = std::env::temp_dir().join(format!("learner-bench-e2e-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     let running = start(ServeOptions { listen: Some("127.0.0.1:0".into()), run_dir: Some(dir.clone()), ..ServeOptions::default() }).await?;
@@ -249,9 +251,9 @@ pub async fn e2e(actors: usize, envs: usize, seconds: f64) -> Result<serde_json:
     }
     let counters = |r: &crate::serve::Running| {
         let c = r.shared.counters.lock().expect("counters lock");
-        (c.env_steps, c.learner_step)
+        (c.env_steps, c.learner_step, r.shared.stats.lock().expect("stats lock").idle_secs)
     };
-    let (s0, u0) = counters(&running);
+    let (s0, u0, idle0) = counters(&running);
     let t0 = Instant::now();
     let mut lags = Vec::new();
     while t0.elapsed().as_secs_f64() < seconds {
@@ -260,7 +262,7 @@ pub async fn e2e(actors: usize, envs: usize, seconds: f64) -> Result<serde_json:
         lags.extend(st.actors.iter().filter(|a| a.connected).map(|a| a.version_lag as f64));
         tracing::info!(secs = t0.elapsed().as_secs(), env_steps = st.transitions_received, updates = st.learner_step, "benchmarking");
     }
-    let (s1, u1) = counters(&running);
+    let (s1, u1, idle1) = counters(&running);
     let secs = t0.elapsed().as_secs_f64();
     for c in &mut children {
         let _ = c.kill();
@@ -273,6 +275,10 @@ pub async fn e2e(actors: usize, envs: usize, seconds: f64) -> Result<serde_json:
         "env_steps_per_sec": (s1 - s0) as f64 / secs,
         "updates_per_sec": (u1 - u0) as f64 / secs,
         "mean_weight_lag": mean_lag,
+        "learner_idle_fraction": ((idle1 - idle0) / secs).clamp(0.0, 1.0),
+        "replay_ratio": cfg_replay_ratio,
+        "load_before": load_before,
+        "load_after": load_average(),
         "actors": actors,
         "envs_per_actor": envs,
     }))

@@ -51,6 +51,9 @@ pub struct TrainStats {
     pub updates_per_sec: f64,
     pub env_steps_per_sec: f64,
     pub epsilon: f64,
+    /// Seconds the training thread has waited for data since it started (replay below its
+    /// minimum, or the replay ratio reached): the learner idle for want of data.
+    pub idle_secs: f64,
 }
 
 /// Everything shared between the server's tasks and the training thread.

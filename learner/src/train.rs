@@ -111,8 +111,11 @@ pub fn run(shared: &Arc<Shared>, mut dqn: Dqn, run_dir: &std::path::Path) -> any
     Ok(dqn)
 }
 
+/// Waits (at most 50 ms) for transitions to arrive, counting the time as idle.
 fn wait_for_data(shared: &Shared) {
+    let started = Instant::now();
     let (lock, cv) = &shared.data_arrived;
     let guard = lock.lock().expect("wait lock");
     let _ = cv.wait_timeout(guard, Duration::from_millis(50)).expect("wait lock");
+    shared.stats.lock().expect("stats lock").idle_secs += started.elapsed().as_secs_f64();
 }
