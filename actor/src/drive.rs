@@ -1,4 +1,6 @@
-//! `actor drive`: runs a policy over evaluation routes and reports per-route outcomes.
+//! `actor drive`: runs a policy over evaluation routes and reports per-route outcomes. Also the
+//! pieces `actor eval` shares: route selection ([`parse_routes`]), the town ([`load_town`]) and
+//! the tally of an episode ([`Episode`]).
 
 use std::sync::Arc;
 
@@ -6,8 +8,9 @@ use anyhow::{Context, Result};
 use clap::Args;
 use serde::Serialize;
 use sim_core::camera::{BirdsEye, BirdsEyeConfig, CameraConfig};
+use sim_core::collision::CollisionKind;
 use sim_core::config::EnvConfig;
-use sim_core::env::Env;
+use sim_core::env::{Env, StepResult};
 use sim_core::scenario::{EvalRoute, Scenario};
 use sim_core::town::Town;
 
@@ -16,7 +19,8 @@ use crate::record::RunRecorder;
 
 #[derive(Debug, Args)]
 pub struct DriveArgs {
-    /// `expert` (the model-based reference driver) or `random`.
+    /// `expert` (the model-based reference driver), `random`, or a checkpoint (a run directory,
+    /// its checkpoint/ directory or its online.safetensors), driven greedily with its own camera.
     #[arg(long, default_value = "expert")]
     pub policy: String,
     /// A route name (straight_highway, straight_urban, straight_under_bridge, slight_curve,
@@ -43,7 +47,8 @@ pub struct DriveArgs {
     /// With --record, also write an animated GIF of the front camera per run.
     #[arg(long, requires = "record")]
     pub gif: bool,
-    /// Front-camera size for --record, WIDTHxHEIGHT (default 160x120, in colour).
+    /// Front-camera size for --record, WIDTHxHEIGHT (default 160x120, in colour; a checkpoint
+    /// policy records what it sees, its own camera).
     #[arg(long, value_name = "WxH", default_value = "160x120", value_parser = parse_size)]
     pub camera: (u32, u32),
     /// Print one JSON object on the last line of stdout instead of a table.
@@ -71,6 +76,63 @@ struct RouteReport {
     kinds: Vec<&'static str>,
 }
 
+/// What one driven episode came to.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Episode {
+    /// Cumulative reward (the paper's metric).
+    pub ret: f64,
+    pub steps: u32,
+    pub arrived: bool,
+    pub collision: Option<CollisionKind>,
+    /// Sums over steps of d (m) and speed (m/s), for the means.
+    sum_d: f64,
+    sum_speed: f64,
+    pub done: bool,
+}
+
+impl Episode {
+    /// Adds a step's result; returns whether the episode is over.
+    pub fn record(&mut self, r: &StepResult) -> bool {
+        self.ret += f64::from(r.reward);
+        self.steps = r.info.steps;
+        self.sum_d += f64::from(r.info.d);
+        self.sum_speed += f64::from(r.info.speed);
+        self.done = r.terminated || r.truncated;
+        if self.done {
+            self.arrived = r.info.arrived;
+            self.collision = r.info.collision;
+        }
+        self.done
+    }
+
+    /// Mean distance to the closest waypoint over the episode's steps, metres.
+    #[must_use]
+    pub fn mean_d(&self) -> f64 {
+        self.sum_d / f64::from(self.steps.max(1))
+    }
+
+    /// Mean speed over the episode's steps, m/s.
+    #[must_use]
+    pub fn mean_speed(&self) -> f64 {
+        self.sum_speed / f64::from(self.steps.max(1))
+    }
+}
+
+/// The routes named on the command line: a route name, `all` seven, or `random` (random training
+/// routes, for any map).
+pub fn parse_routes(arg: &str) -> Result<Vec<(&'static str, Scenario)>> {
+    Ok(match arg {
+        "all" => EvalRoute::ALL.iter().map(|&r| (r.name(), Scenario::Eval(r))).collect(),
+        "random" => vec![("random", Scenario::Random)],
+        name => {
+            let r = EvalRoute::from_name(name).with_context(|| {
+                format!("unknown route `{name}`: expected `all`, `random` or one of {}", EvalRoute::ALL.map(EvalRoute::name).join(", "))
+            })?;
+            vec![(r.name(), Scenario::Eval(r))]
+        }
+    })
+}
+
 /// Loads the town: the embedded default or a map file.
 pub fn load_town(map: Option<&std::path::Path>) -> Result<Arc<Town>> {
     match map {
@@ -83,16 +145,7 @@ pub fn load_town(map: Option<&std::path::Path>) -> Result<Arc<Town>> {
 }
 
 pub fn run(args: &DriveArgs) -> Result<()> {
-    let scenarios: Vec<(&'static str, Scenario)> = match args.route.as_str() {
-        "all" => EvalRoute::ALL.iter().map(|&r| (r.name(), Scenario::Eval(r))).collect(),
-        "random" => vec![("random", Scenario::Random)],
-        name => {
-            let r = EvalRoute::from_name(name).with_context(|| {
-                format!("unknown route `{name}`: expected `all`, `random` or one of {}", EvalRoute::ALL.map(EvalRoute::name).join(", "))
-            })?;
-            vec![(r.name(), Scenario::Eval(r))]
-        }
-    };
+    let scenarios = parse_routes(&args.route)?;
     if args.runs == 0 {
         anyhow::bail!("--runs must be at least 1");
     }
@@ -101,9 +154,18 @@ pub fn run(args: &DriveArgs) -> Result<()> {
     if let Some(n) = args.traffic {
         cfg.traffic.vehicles = n;
     }
-    // Rendering costs time: only when recording.
+    // Rendering costs time: only when recording, or for a policy that drives from the camera.
     cfg.camera =
         args.record.as_ref().map(|_| CameraConfig { width: args.camera.0, height: args.camera.1, rgb: true, ..CameraConfig::default() });
+    let mut checkpoint = match args.policy.as_str() {
+        "expert" | "random" => None,
+        path => {
+            let agent = crate::eval::load_checkpoint(std::path::Path::new(path))
+                .with_context(|| format!("--policy `{path}` is neither `expert`, `random` nor a checkpoint"))?;
+            cfg.camera.clone_from(&agent.cfg.env.camera);
+            Some(agent)
+        }
+    };
     let birdseye = BirdsEye::new(&BirdsEyeConfig::default())?;
     let mut env = Env::new(town, cfg).context("creating the environment")?;
     let mut reports = Vec::new();
@@ -112,25 +174,29 @@ pub fn run(args: &DriveArgs) -> Result<()> {
             RouteReport { route: name, runs: args.runs, completed: 0, collisions: 0, mean_return: 0.0, mean_steps: 0.0, kinds: Vec::new() };
         for k in 0..args.runs {
             let seed = args.seed + u64::from(k);
-            let mut policy = Policy::from_name(&args.policy, seed)?;
+            let mut policy = if checkpoint.is_some() { None } else { Some(Policy::from_name(&args.policy, seed)?) };
             env.reset(seed, scenario).with_context(|| format!("starting route {name}"))?;
             let mut recorder = match &args.record {
                 Some(dir) => Some(RunRecorder::new(dir.join(name).join(format!("run{k}")), args.gif)?),
                 None => None,
             };
-            let mut ret = 0.0f64;
+            let mut episode = Episode::default();
             loop {
                 if let Some(rec) = recorder.as_mut() {
                     let bev = env.birdseye(&birdseye);
                     rec.frame(env.steps(), env.image(), &bev)?;
                 }
-                let r = env.step(policy.act(&env))?;
-                ret += f64::from(r.reward);
-                if r.terminated || r.truncated {
-                    if r.info.arrived {
+                let action = match (&mut policy, &mut checkpoint) {
+                    (Some(p), _) => p.act(&env),
+                    (None, Some(agent)) => crate::eval::greedy_action(agent, &env),
+                    (None, None) => unreachable!("a named policy or a checkpoint"),
+                };
+                let r = env.step(action)?;
+                if episode.record(&r) {
+                    if episode.arrived {
                         rep.completed += 1;
                     }
-                    if let Some(kind) = r.info.collision {
+                    if let Some(kind) = episode.collision {
                         rep.collisions += 1;
                         rep.kinds.push(kind.name());
                     }
@@ -140,11 +206,11 @@ pub fn run(args: &DriveArgs) -> Result<()> {
                         rec.frame(env.steps(), env.image(), &bev)?;
                         rec.finish()?;
                     }
-                    tracing::debug!(route = name, seed, steps = r.info.steps, ret, arrived = r.info.arrived, collision = ?r.info.collision, progress = r.info.progress, "run finished");
+                    tracing::debug!(route = name, seed, steps = r.info.steps, ret = episode.ret, arrived = r.info.arrived, collision = ?r.info.collision, progress = r.info.progress, "run finished");
                     break;
                 }
             }
-            rep.mean_return += ret / f64::from(args.runs);
+            rep.mean_return += episode.ret / f64::from(args.runs);
             rep.mean_steps += f64::from(env.steps()) / f64::from(args.runs);
         }
         reports.push(rep);

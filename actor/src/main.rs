@@ -1,8 +1,10 @@
-//! `actor`: the user-facing simulator program. It drives routes with the reference driver or a
-//! random policy and benchmarks the simulator; later it also streams experience to a learner.
+//! `actor`: the user-facing program. It trains (`actor train`), serves a learner as an actor
+//! (`actor --learner ADDR`), evaluates checkpoints (`actor eval`), drives routes with the
+//! reference driver or a random policy, and benchmarks the simulator.
 
 mod bench;
 mod drive;
+mod eval;
 mod policy;
 mod record;
 mod run;
@@ -51,6 +53,9 @@ enum Command {
     Train(train::TrainArgs),
     /// Drive evaluation routes with a policy and report completions, collisions and returns.
     Drive(drive::DriveArgs),
+    /// Evaluate checkpoints greedily on the paper's seven routes beside the model-based baseline
+    /// (the paper's Table I).
+    Eval(eval::EvalArgs),
     /// Benchmarks.
     #[command(subcommand)]
     Bench(bench::BenchCommand),
@@ -67,10 +72,13 @@ fn main() -> Result<()> {
             tokio::runtime::Builder::new_multi_thread().worker_threads(2).enable_all().build()?.block_on(train::run(&args))
         }
         Some(Command::Drive(args)) => drive::run(&args),
+        Some(Command::Eval(args)) => eval::run(&args),
         Some(Command::Bench(cmd)) => bench::run(&cmd),
         None => {
             let Some(learner) = cli.learner else {
-                anyhow::bail!("nothing to do: give --learner ADDR to run as an actor, or a subcommand (drive, bench); see --help");
+                anyhow::bail!(
+                    "nothing to do: give --learner ADDR to run as an actor, or a subcommand (train, eval, drive, bench); see --help"
+                );
             };
             let name = cli.id.unwrap_or_else(|| format!("{}-{}", hostname(), std::process::id()));
             let opts = run::ActorOptions {

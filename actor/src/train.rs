@@ -1,6 +1,8 @@
 //! `actor train`: the main job in one command. A learner in this process and local actor
 //! processes (this same program with `--learner`) over loopback gRPC, with live progress. The run
 //! directory is resumed when it already holds a checkpoint; Ctrl-C writes a checkpoint and exits.
+//! With `--max-minutes`, the run also stops (the same way) once its total run time — summed over
+//! resumptions — reaches the budget, so an interrupted budgeted run resumes to the same budget.
 
 use std::path::PathBuf;
 use std::process::{Child, Command, Stdio};
@@ -8,13 +10,27 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result};
 use clap::Args;
+use learner::config::RunConfig;
 use learner::serve::{ServeOptions, shutdown_signal, start};
 
 #[derive(Debug, Args)]
 pub struct TrainArgs {
     /// Run configuration (TOML; see `learner config`). Defaults when omitted.
-    #[arg(long)]
+    #[arg(long, conflicts_with = "preset")]
     pub config: Option<PathBuf>,
+    /// Start from a named configuration instead: `paper` (the paper's hybrid agent) or
+    /// `end-to-end` (its baseline without d). A file can do the same with `preset = "NAME"`.
+    #[arg(long, value_name = "NAME")]
+    pub preset: Option<String>,
+    /// Seed of the network initialisation and replay sampling (`agent.seed`) and of the actors'
+    /// environments and exploration (actor k gets 64·S + k). Default: the configuration's seed,
+    /// actors 0..N.
+    #[arg(long)]
+    pub seed: Option<u64>,
+    /// Stop (checkpoint written, like Ctrl-C) once the run has trained this many minutes in
+    /// total, counting earlier sessions of a resumed run.
+    #[arg(long, alias = "minutes", value_name = "MINUTES")]
+    pub max_minutes: Option<f64>,
     /// Run directory: config, checkpoints, metrics, actor logs. Resumed if it holds a checkpoint.
     #[arg(long, default_value = "runs/train")]
     pub run_dir: PathBuf,
@@ -30,12 +46,23 @@ pub async fn run(args: &TrainArgs) -> Result<()> {
     if args.actors == 0 || args.actors > 64 {
         anyhow::bail!("--actors {} must be 1..=64", args.actors);
     }
-    let resume = args.run_dir.join("checkpoint").exists() || args.run_dir.join("checkpoint.old").exists();
-    if resume {
-        eprintln!("resuming the run in {}", args.run_dir.display());
+    if let Some(m) = args.max_minutes
+        && !(m.is_finite() && m > 0.0)
+    {
+        anyhow::bail!("--max-minutes {m} must be a positive number of minutes");
     }
+    let resume = args.run_dir.join("checkpoint").exists() || args.run_dir.join("checkpoint.old").exists();
+    let config = if resume {
+        eprintln!("resuming the run in {}", args.run_dir.display());
+        if args.config.is_some() || args.preset.is_some() || args.seed.is_some() {
+            eprintln!("(the run's saved configuration applies: --config, --preset and --seed are ignored when resuming)");
+        }
+        None
+    } else {
+        requested_config(args)?
+    };
     let running = start(ServeOptions {
-        config: if resume { None } else { args.config.clone() },
+        config,
         listen: Some("127.0.0.1:0".into()),
         run_dir: Some(args.run_dir.clone()),
         resume,
@@ -52,12 +79,23 @@ pub async fn run(args: &TrainArgs) -> Result<()> {
         args.run_dir.display()
     );
     eprintln!("Ctrl-C stops: a checkpoint is written and the same command resumes.");
+    let budget_secs = args.max_minutes.map(|m| m * 60.0);
+    if let Some(b) = budget_secs {
+        let used = running.shared.run_secs();
+        if used >= b {
+            eprintln!("the run has already trained {:.1} min, the budget of --max-minutes {:.1}: nothing to do", used / 60.0, b / 60.0);
+            running.stop().await?;
+            return Ok(());
+        }
+        eprintln!("time budget: {:.1} min in total ({:.1} min used so far); stops with a checkpoint when spent", b / 60.0, used / 60.0);
+    }
     let exe = std::env::current_exe().context("locating this program to start actors")?;
     let mut children: Vec<Child> = Vec::new();
     for k in 0..args.actors {
         let log = std::fs::File::create(args.run_dir.join(format!("actor-{k}.log")))?;
+        let seed = args.seed.map_or(k as u64, |s| s.wrapping_mul(64).wrapping_add(k as u64));
         let child = Command::new(&exe)
-            .args(["--learner", &addr, "--envs", &args.envs.to_string(), "--id", &format!("local-{k}"), "--seed", &k.to_string()])
+            .args(["--learner", &addr, "--envs", &args.envs.to_string(), "--id", &format!("local-{k}"), "--seed", &seed.to_string()])
             .stdin(Stdio::null())
             .stdout(Stdio::null())
             .stderr(log)
@@ -91,7 +129,21 @@ pub async fn run(args: &TrainArgs) -> Result<()> {
         }
     });
 
-    shutdown_signal().await;
+    let shared = running.shared.clone();
+    let budget_spent = async move {
+        match budget_secs {
+            Some(b) => {
+                while shared.run_secs() < b {
+                    tokio::time::sleep(Duration::from_millis(500)).await;
+                }
+            }
+            None => std::future::pending().await,
+        }
+    };
+    tokio::select! {
+        () = shutdown_signal() => {}
+        () = budget_spent => eprintln!("time budget of {:.1} min spent", args.max_minutes.unwrap_or_default()),
+    }
     progress.abort();
     eprintln!("stopping: actors flush, the learner writes a checkpoint…");
     // Actors in the terminal's process group got the Ctrl-C too; make sure of it for SIGTERM.
@@ -108,7 +160,34 @@ pub async fn run(args: &TrainArgs) -> Result<()> {
             let _ = c.wait();
         }
     }
+    let s = learner::service::status(&running.shared);
     let path = running.stop().await?;
-    eprintln!("checkpoint written to {}; run the same command to continue.", path.display());
+    eprintln!(
+        "checkpoint written to {} ({} env steps, {} episodes, {} updates); run the same command to continue.",
+        path.display(),
+        s.transitions_received,
+        s.episodes.unwrap_or_default().episodes_total,
+        s.learner_step
+    );
     Ok(())
+}
+
+/// The configuration file to start a new run with: `--config` as given, or — when `--preset` or
+/// `--seed` ask for more — the effective configuration written to `RUN_DIR/requested-config.toml`.
+fn requested_config(args: &TrainArgs) -> Result<Option<PathBuf>> {
+    if args.preset.is_none() && args.seed.is_none() {
+        return Ok(args.config.clone());
+    }
+    let mut cfg = match (&args.preset, &args.config) {
+        (Some(name), _) => RunConfig::preset(name).map_err(|e| anyhow::anyhow!("--preset: {e}"))?,
+        (None, Some(path)) => RunConfig::load(path)?,
+        (None, None) => RunConfig::default(),
+    };
+    if let Some(seed) = args.seed {
+        cfg.agent.seed = seed;
+    }
+    std::fs::create_dir_all(&args.run_dir).with_context(|| format!("creating run directory {}", args.run_dir.display()))?;
+    let path = args.run_dir.join("requested-config.toml");
+    std::fs::write(&path, cfg.to_toml()).with_context(|| format!("writing {}", path.display()))?;
+    Ok(Some(path))
 }

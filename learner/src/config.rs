@@ -2,17 +2,39 @@
 //! `[agent]` (network, replay and training) and `[service]` (the gRPC server and the run
 //! directory). Every field has a documented default; values are validated at load with errors that
 //! name the field.
+//!
+//! A file may start from a named preset ([`PRESETS`]): `preset = "paper"` (or `"end-to-end"`) at
+//! the top level takes every value from the preset, and whatever else the file sets overrides it,
+//! table by table (`[env.camera] width = 32` changes only the width). Without `preset`, the
+//! starting point is the built-in defaults. The effective configuration written to a run
+//! directory keeps the `preset` line, for the record.
+//!
+//! Extensions beyond the paper are switches of `[agent]`, all off in the defaults and in both
+//! presets: `double_dqn`, `prioritized_replay` (with `priority_alpha`, `priority_beta`), `n_step`
+//! (1 = the paper's one-step targets) and `per_actor_epsilon` (Ape-X exploration).
 
 use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 use sim_core::actions::ActionSet;
+use sim_core::camera::CameraConfig;
 use sim_core::config::{EnvConfig, Variant};
+use sim_core::reward::RewardConfig;
+
+/// The named presets, with what each is.
+pub const PRESETS: [(&str, &str); 2] = [
+    ("paper", "the paper's hybrid agent: d in the observation, r_w in the reward; plain one-step DQN, uniform replay"),
+    ("end-to-end", "the paper's baseline: the same network and training, camera and speed only (no d input, no r_w)"),
+];
 
 /// The whole configuration of a run.
 #[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct RunConfig {
+    /// The named preset the file starts from (`paper`, `end-to-end`); the file's other values
+    /// override it. Default: none, the built-in defaults.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub preset: Option<String>,
     pub env: EnvConfig,
     pub agent: AgentConfig,
     pub service: ServiceConfig,
@@ -48,21 +70,23 @@ pub struct AgentConfig {
     pub grad_clip_norm: f32,
     /// Huber loss threshold δ (default 1).
     pub huber_delta: f32,
-    /// Double DQN targets (default false: the paper's plain DQN).
+    /// Extension switch: double DQN targets, the online network choosing the next action and the
+    /// target network valuing it (van Hasselt 2016) (default false: the paper's plain DQN).
     pub double_dqn: bool,
-    /// Prioritized replay (default false: uniform, the paper's).
+    /// Extension switch: prioritized replay, sampling by TD error (Schaul 2016) (default false:
+    /// uniform, the paper's).
     pub prioritized_replay: bool,
     /// Prioritization exponent α (default 0.6) and importance-sampling exponent β (default 0.4).
     pub priority_alpha: f32,
     pub priority_beta: f32,
-    /// n-step returns (default 1, the paper's one-step targets).
+    /// Extension switch: n-step returns, 1..=32 (default 1, the paper's one-step targets).
     pub n_step: usize,
     /// Exploration: ε decays linearly from `epsilon_start` to `epsilon_end` over
     /// `epsilon_decay_steps` environment steps (defaults 1.0, 0.05, 200 000).
     pub epsilon_start: f32,
     pub epsilon_end: f32,
     pub epsilon_decay_steps: u64,
-    /// Per-actor ε (Ape-X: ε_i = ε^(1 + α·i/(N−1)), i the actor's index, N = `apex_actors`)
+    /// Extension switch: per-actor ε (Ape-X: ε_i = ε^(1 + α·i/(N−1)), i the actor's index, N = `apex_actors`)
     /// instead of the schedule (default false; ε = 0.4, α = 7, N = 8).
     pub per_actor_epsilon: bool,
     pub apex_epsilon: f32,
@@ -159,10 +183,75 @@ impl RunConfig {
         Self::from_toml(&text, &shown)
     }
 
-    /// Parses and validates TOML text; `origin` names it in errors.
+    /// Parses and validates TOML text; `origin` names it in errors. With a `preset` key, the
+    /// preset's values are the starting point and the text's other values override them.
     pub fn from_toml(text: &str, origin: &str) -> Result<Self, ConfigError> {
-        let cfg: Self = toml::from_str(text).map_err(|e| ConfigError::Parse { path: origin.into(), message: e.to_string() })?;
-        cfg.validate().map_err(|(field, message)| ConfigError::Invalid { path: origin.into(), field, message })?;
+        let parse_error = |e: toml::de::Error| ConfigError::Parse { path: origin.into(), message: e.to_string() };
+        let invalid = |(field, message): (String, String)| ConfigError::Invalid { path: origin.into(), field, message };
+        // Parsed alone first, so that unknown fields and wrong types are reported with their line.
+        let own: Self = toml::from_str(text).map_err(parse_error)?;
+        let cfg = match &own.preset {
+            None => own,
+            Some(name) => {
+                let base = Self::preset(name).map_err(|m| invalid(("preset".into(), m)))?;
+                let mut merged = toml::Table::try_from(&base).expect("a configuration converts to a TOML table");
+                merge_tables(&mut merged, toml::from_str::<toml::Table>(text).map_err(parse_error)?);
+                merged.try_into().map_err(parse_error)?
+            }
+        };
+        cfg.validate().map_err(invalid)?;
+        Ok(cfg)
+    }
+
+    /// The preset named `name` (see [`PRESETS`]); the error lists the valid names.
+    ///
+    /// `paper` is the paper-faithful hybrid agent (Yurtsever et al. 2020; SPEC §1): the paper's
+    /// reward (ε = 5 m, v0 = 50 km/h, d0 = 8 m, all β = 1, collision −1, arrival +100, no
+    /// clipping), d as a network input, the paper's network (three conv layers of 64 3×3 filters
+    /// with 2×2 average pooling, two fully connected layers of 256), the paper code's six actions,
+    /// γ = 0.99, waypoints every 8 m, training routes of 50–150 m, and plain one-step DQN with
+    /// uniform replay — every extension switch off. What the paper does not state (learning rate,
+    /// batch, replay size, exploration schedule, camera resolution: 84×84 gray) keeps this
+    /// program's defaults. `end-to-end` is the same with `env.variant = "end_to_end"`: the network
+    /// sees camera and speed only and the reward has no r_w (SPEC §1, the paper's baseline).
+    pub fn preset(name: &str) -> Result<Self, String> {
+        let mut cfg = Self::default();
+        let variant = match name {
+            "paper" => Variant::Hybrid,
+            "end-to-end" => Variant::EndToEnd,
+            other => {
+                let names: Vec<&str> = PRESETS.iter().map(|p| p.0).collect();
+                return Err(format!("unknown preset `{other}`: expected one of {}", names.join(", ")));
+            }
+        };
+        cfg.preset = Some(name.to_owned());
+        let env = &mut cfg.env;
+        env.variant = variant;
+        env.reward = RewardConfig {
+            collision: -1.0,
+            arrival: 100.0,
+            arrival_radius: 5.0,
+            v0_kmh: 50.0,
+            d0: 8.0,
+            beta_v: 1.0,
+            beta_l: 1.0,
+            beta_w: 1.0,
+            clip: None,
+        };
+        env.dt = 0.1;
+        env.waypoint_spacing = 8.0;
+        env.route_length_min = 50.0;
+        env.route_length_max = 150.0;
+        env.camera = Some(CameraConfig::default());
+        let a = &mut cfg.agent;
+        a.action_set = ActionSet::Paper6;
+        a.conv_filters = 64;
+        a.hidden = 256;
+        a.gamma = 0.99;
+        a.double_dqn = false;
+        a.prioritized_replay = false;
+        a.n_step = 1;
+        a.per_actor_epsilon = false;
         Ok(cfg)
     }
 
@@ -174,6 +263,9 @@ impl RunConfig {
 
     /// Checks every field; the error is (dotted field path, what is wrong).
     pub fn validate(&self) -> Result<(), (String, String)> {
+        if let Some(name) = &self.preset {
+            Self::preset(name).map_err(|m| ("preset".to_owned(), m))?;
+        }
         self.env.validate().map_err(|e| (format!("env.{}", e.field), e.message))?;
         let a = &self.agent;
         let bad = |field: &str, message: String| Err((format!("agent.{field}"), message));
@@ -282,6 +374,18 @@ impl RunConfig {
     }
 }
 
+/// Overlays `top` on `base`: tables merge key by key, any other value replaces.
+fn merge_tables(base: &mut toml::Table, top: toml::Table) {
+    for (key, value) in top {
+        match (base.get_mut(&key), value) {
+            (Some(toml::Value::Table(b)), toml::Value::Table(t)) => merge_tables(b, t),
+            (_, value) => {
+                base.insert(key, value);
+            }
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -310,5 +414,53 @@ mod tests {
         assert!(e.to_string().contains("field `env.reward.d0`"), "{e}");
         let e = RunConfig::from_toml("[agent]\nbatch = 3\n", "run.toml").unwrap_err();
         assert!(e.to_string().contains("unknown field `batch`"), "{e}");
+    }
+
+    #[test]
+    fn presets_are_the_paper_with_every_extension_off() {
+        for (name, _) in PRESETS {
+            let cfg = RunConfig::preset(name).unwrap();
+            cfg.validate().unwrap();
+            assert_eq!(cfg.preset.as_deref(), Some(name));
+            let a = &cfg.agent;
+            assert!(!a.double_dqn && !a.prioritized_replay && !a.per_actor_epsilon && a.n_step == 1, "{name}: {a:?}");
+            assert_eq!((a.conv_filters, a.hidden, a.action_set), (64, 256, ActionSet::Paper6));
+            assert_eq!((cfg.env.reward.d0, cfg.env.reward.v0_kmh, cfg.env.reward.arrival), (8.0, 50.0, 100.0));
+        }
+        let paper = RunConfig::preset("paper").unwrap();
+        let e2e = RunConfig::preset("end-to-end").unwrap();
+        assert_eq!((paper.scalar_inputs(), e2e.scalar_inputs()), (2, 1));
+        // The two differ in the variant (and the name) only.
+        let same = RunConfig { preset: paper.preset.clone(), env: EnvConfig { variant: Variant::Hybrid, ..e2e.env.clone() }, ..e2e };
+        assert_eq!(same, paper);
+        let e = RunConfig::preset("papr").unwrap_err();
+        assert_eq!(e, "unknown preset `papr`: expected one of paper, end-to-end");
+    }
+
+    #[test]
+    fn a_file_overrides_its_preset_field_by_field() {
+        let text = "preset = \"end-to-end\"\n[agent]\nlearning_rate = 0.001\n[env.camera]\nwidth = 32\n";
+        let cfg = RunConfig::from_toml(text, "t.toml").unwrap();
+        assert_eq!(cfg.env.variant, Variant::EndToEnd);
+        assert_eq!(cfg.agent.learning_rate, 0.001);
+        let cam = cfg.env.camera.as_ref().unwrap();
+        assert_eq!((cam.width, cam.height), (32, 84), "only the width is overridden");
+        // The effective file keeps the preset line and loads back to the same configuration.
+        let written = cfg.to_toml();
+        assert!(written.starts_with("preset = \"end-to-end\""), "{written}");
+        assert_eq!(RunConfig::from_toml(&written, "back").unwrap(), cfg);
+        // No preset: the defaults, and no preset line written.
+        assert!(!RunConfig::default().to_toml().contains("preset"));
+    }
+
+    #[test]
+    fn an_unknown_preset_names_the_field_and_the_choices() {
+        let e = RunConfig::from_toml("preset = \"fast\"\n", "run.toml").unwrap_err();
+        assert_eq!(e.to_string(), "config file run.toml: field `preset`: unknown preset `fast`: expected one of paper, end-to-end");
+        let e = RunConfig::from_toml("preset = 3\n", "run.toml").unwrap_err();
+        assert!(e.to_string().contains("preset"), "{e}");
+        // Values set beside a preset are still validated.
+        let e = RunConfig::from_toml("preset = \"paper\"\n[agent]\ngamma = 2.0\n", "run.toml").unwrap_err();
+        assert!(e.to_string().contains("field `agent.gamma`"), "{e}");
     }
 }

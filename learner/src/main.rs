@@ -83,8 +83,13 @@ enum Command {
     /// and validated (a starting point for `serve --config`).
     Config {
         /// A configuration file to validate and complete.
-        #[arg(long)]
+        #[arg(long, conflicts_with = "preset")]
         config: Option<PathBuf>,
+        /// A named preset instead: `paper` (the paper's hybrid agent, every extension off) or
+        /// `end-to-end` (its baseline: no d input, no r_w). Files can start from one with
+        /// `preset = "NAME"`.
+        #[arg(long, value_name = "NAME")]
+        preset: Option<String>,
     },
     /// Benchmarks.
     #[command(subcommand)]
@@ -188,10 +193,11 @@ fn main() -> Result<()> {
                 println!("SERVING");
                 Ok(())
             }
-            Command::Config { config } => {
-                let cfg = match config {
-                    Some(p) => learner::config::RunConfig::load(&p)?,
-                    None => learner::config::RunConfig::default(),
+            Command::Config { config, preset } => {
+                let cfg = match (config, preset) {
+                    (Some(p), _) => learner::config::RunConfig::load(&p)?,
+                    (None, Some(name)) => learner::config::RunConfig::preset(&name).map_err(|e| anyhow::anyhow!("--preset: {e}"))?,
+                    (None, None) => learner::config::RunConfig::default(),
                 };
                 print!("{}", cfg.to_toml());
                 Ok(())
