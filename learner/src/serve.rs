@@ -244,6 +244,9 @@ pub async fn start(opts: ServeOptions) -> Result<Running> {
         tonic::transport::Server::builder()
             .initial_stream_window_size(Some(STREAM_WINDOW))
             .initial_connection_window_size(Some(CONNECTION_WINDOW))
+            // Streams of actors that vanished without closing (a cut network) end within ~30 s.
+            .http2_keepalive_interval(Some(std::time::Duration::from_secs(10)))
+            .http2_keepalive_timeout(Some(std::time::Duration::from_secs(20)))
             .add_service(health)
             .add_service(reflection)
             .add_service(svc)

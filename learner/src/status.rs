@@ -18,6 +18,11 @@ pub async fn connect(addr: &str, token: Option<String>) -> Result<Client> {
         .connect_timeout(std::time::Duration::from_secs(5))
         .initial_stream_window_size(Some(crate::serve::STREAM_WINDOW))
         .initial_connection_window_size(Some(crate::serve::CONNECTION_WINDOW))
+        // A silently dead path (a cut network, a peer that moved) is noticed within ~30 s, not
+        // after TCP's own retransmission timeout of many minutes, so actors reconnect.
+        .http2_keep_alive_interval(std::time::Duration::from_secs(10))
+        .keep_alive_timeout(std::time::Duration::from_secs(20))
+        .keep_alive_while_idle(true)
         .connect()
         .await
         .with_context(|| format!("connecting to the learner at {url}"))?;
