@@ -186,6 +186,14 @@ results="$out_dir/RESULTS.md"
     echo
     echo "![Normalised smoothed return per episode, loss and mean Q of both runs](figures/curves.png)"
     echo
+    if [[ "$smoke" == 1 ]]; then
+        echo "## Smoke configuration (\`$runs_dir/hybrid.toml\`; the end-to-end one differs in the preset)"
+        echo
+        echo '```toml'
+        cat "$runs_dir/hybrid.toml"
+        echo '```'
+        echo
+    fi
     echo "## Machine"
     echo
     echo "- CPU: ${cpu:-unknown}, $(nproc) cores visible (\`nproc\`), memory $mem"

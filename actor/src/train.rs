@@ -69,16 +69,6 @@ pub async fn run(args: &TrainArgs) -> Result<()> {
         ..ServeOptions::default()
     })
     .await?;
-    let addr = running.addr.to_string();
-    eprintln!(
-        "learner on {addr}, run {} in {}; starting {} actors × {} environments (logs: {}/actor-N.log)",
-        running.shared.run_id,
-        args.run_dir.display(),
-        args.actors,
-        args.envs,
-        args.run_dir.display()
-    );
-    eprintln!("Ctrl-C stops: a checkpoint is written and the same command resumes.");
     let budget_secs = args.max_minutes.map(|m| m * 60.0);
     if let Some(b) = budget_secs {
         let used = running.shared.run_secs();
@@ -89,6 +79,16 @@ pub async fn run(args: &TrainArgs) -> Result<()> {
         }
         eprintln!("time budget: {:.1} min in total ({:.1} min used so far); stops with a checkpoint when spent", b / 60.0, used / 60.0);
     }
+    let addr = running.addr.to_string();
+    eprintln!(
+        "learner on {addr}, run {} in {}; starting {} actors × {} environments (logs: {}/actor-N.log)",
+        running.shared.run_id,
+        args.run_dir.display(),
+        args.actors,
+        args.envs,
+        args.run_dir.display()
+    );
+    eprintln!("Ctrl-C stops: a checkpoint is written and the same command resumes.");
     let exe = std::env::current_exe().context("locating this program to start actors")?;
     let mut children: Vec<Child> = Vec::new();
     for k in 0..args.actors {
