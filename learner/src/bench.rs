@@ -218,17 +218,32 @@ pub async fn ingest(seconds: f64) -> Result<serde_json::Value> {
 /// `actors` actor processes (the `actor` program next to this one) for `seconds`, and measures
 /// what they produce: environment steps per second, updates per second, and the mean lag
 /// between the newest weights and the weights actors act with (sampled every second).
-pub async fn e2e(actors: usize, envs: usize, seconds: f64) -> Result<serde_json::Value> {
+///
+/// Without `train`, the learner only ingests (its replay never reaches its minimum): the actors'
+/// own rate with nothing else on the cores.
+pub async fn e2e(actors: usize, envs: usize, seconds: f64, train: bool) -> Result<serde_json::Value> {
     let exe = std::env::current_exe()?;
     let actor_exe = exe.with_file_name(if cfg!(windows) { "actor.exe" } else { "actor" });
     if !actor_exe.exists() {
         bail!("the actor program is not next to this one ({}): build it with `cargo build --release -p actor`", actor_exe.display());
     }
     let load_before = load_average();
-    let cfg_replay_ratio = f64::from(RunConfig::default().agent.replay_ratio);
+    let mut cfg = RunConfig::default();
+    if !train {
+        cfg.agent.min_replay = cfg.agent.replay_capacity;
+    }
     let dir = std::env::temp_dir().join(format!("learner-bench-e2e-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
-    let running = start(ServeOptions { listen: Some("127.0.0.1:0".into()), run_dir: Some(dir.clone()), ..ServeOptions::default() }).await?;
+    std::fs::create_dir_all(&dir)?;
+    let cfg_path = dir.join("bench.toml");
+    std::fs::write(&cfg_path, cfg.to_toml())?;
+    let running = start(ServeOptions {
+        config: Some(cfg_path),
+        listen: Some("127.0.0.1:0".into()),
+        run_dir: Some(dir.join("run")),
+        ..ServeOptions::default()
+    })
+    .await?;
     let addr = running.addr.to_string();
     let mut children = Vec::new();
     for k in 0..actors {
@@ -276,7 +291,8 @@ pub async fn e2e(actors: usize, envs: usize, seconds: f64) -> Result<serde_json:
         "updates_per_sec": (u1 - u0) as f64 / secs,
         "mean_weight_lag": mean_lag,
         "learner_idle_fraction": ((idle1 - idle0) / secs).clamp(0.0, 1.0),
-        "replay_ratio": cfg_replay_ratio,
+        "replay_ratio": cfg.agent.replay_ratio,
+        "training": train,
         "load_before": load_before,
         "load_after": load_average(),
         "actors": actors,

@@ -121,7 +121,9 @@ enum BenchCommand {
         #[arg(long)]
         json: bool,
     },
-    /// Learner here plus N actor processes: {"env_steps_per_sec","updates_per_sec","mean_weight_lag"}.
+    /// Learner here plus N actor processes: {"env_steps_per_sec","updates_per_sec","mean_weight_lag",
+    /// "learner_idle_fraction","replay_ratio","training","actors","envs_per_actor","load_before",
+    /// "load_after"}.
     E2e {
         /// Actor processes (the `actor` program next to this one).
         #[arg(long, default_value_t = 2)]
@@ -132,6 +134,9 @@ enum BenchCommand {
         /// Seconds to measure (after every actor has started streaming).
         #[arg(long, default_value_t = 30.0)]
         seconds: f64,
+        /// Ingest only, no training: the actors' own rate.
+        #[arg(long)]
+        no_train: bool,
         /// Print one JSON object on the last line of stdout.
         #[arg(long)]
         json: bool,
@@ -223,11 +228,11 @@ fn main() -> Result<()> {
                 print_result(&v, json);
                 Ok(())
             }
-            Command::Bench(BenchCommand::E2e { actors, envs, seconds, json }) => {
+            Command::Bench(BenchCommand::E2e { actors, envs, seconds, no_train, json }) => {
                 if actors == 0 || envs == 0 || !(seconds > 0.0 && seconds.is_finite()) {
                     anyhow::bail!("--actors and --envs must be at least 1 and --seconds positive");
                 }
-                let v = learner::bench::e2e(actors, envs, seconds).await?;
+                let v = learner::bench::e2e(actors, envs, seconds, !no_train).await?;
                 print_result(&v, json);
                 Ok(())
             }
