@@ -1,6 +1,6 @@
-//! The learner: replay buffer, DQN training with candle, checkpoints, weight broadcast, status and
-//! metrics. The Q-network definition (`net`) is shared with the actor, which links this library
-//! for inference.
+//! The learner: replay buffer, DQN training on the fast CPU network (`fastnet`), checkpoints,
+//! weight broadcast, status and metrics. The Q-network's definition (`net`) and its fast
+//! implementation (`fastnet`) are shared with the actor, which links this library for inference.
 
 pub mod bench;
 pub mod checkpoint;
