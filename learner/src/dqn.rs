@@ -3,7 +3,7 @@
 //! The networks run on the fast CPU implementation ([`crate::fastnet`]).
 
 use crate::config::AgentConfig;
-use crate::fastnet::{Adam, FastNet, Params, default_threads};
+use crate::fastnet::{Adam, FastNet, Params, argmax, default_threads};
 use crate::net::NetShape;
 
 /// A batch of transitions ready for an update.
@@ -141,11 +141,6 @@ impl Dqn {
     pub fn sync_target(&mut self) {
         self.target.clone_from(&self.online);
     }
-}
-
-/// Index of the largest value (the first of equals).
-fn argmax(v: &[f32]) -> usize {
-    v.iter().enumerate().fold(0, |best, (i, &x)| if x > v[best] { i } else { best })
 }
 
 /// Huber loss: ½x² for |x| ≤ δ, δ(|x| − ½δ) beyond.

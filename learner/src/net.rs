@@ -160,17 +160,6 @@ pub fn load_safetensors(vars: &VarMap, bytes: &[u8], device: &Device) -> Result<
     Ok(())
 }
 
-/// Copies every parameter of `from` into `to` (target-network update).
-pub fn copy_parameters(from: &VarMap, to: &VarMap) -> Result<()> {
-    let src = from.data().lock().expect("var map lock");
-    let dst = to.data().lock().expect("var map lock");
-    for (name, var) in dst.iter() {
-        let s = src.get(name).ok_or_else(|| candle_core::Error::Msg(format!("missing parameter `{name}`")))?;
-        var.set(s.as_tensor())?;
-    }
-    Ok(())
-}
-
 /// Images (row-major u8, `H×W×C` each) as an f32 tensor `[B, C, H, W]` scaled to 0–1.
 pub fn images_tensor(images: &[&[u8]], shape: &NetShape, device: &Device) -> Result<Tensor> {
     let (h, w, c) = (shape.height, shape.width, shape.channels);

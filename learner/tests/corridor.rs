@@ -9,10 +9,11 @@
 //! observation is an 8×8 gray image, black with a white column at the agent's cell; the scalar
 //! inputs (speed, d) are 0.
 
-use learner::config::AgentConfig;
-use learner::dqn::{Batch, Dqn};
+use learner::config::{AgentConfig, RunConfig};
+use learner::dqn::Dqn;
 use learner::net::NetShape;
-use learner::replay::{Replay, ReplayConfig, Sample, StepRecord};
+use learner::replay::{Replay, ReplayConfig, StepRecord};
+use learner::train::make_batch;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
@@ -87,20 +88,6 @@ fn greedy_episode(dqn: &mut Dqn) -> Option<u32> {
         if truncated {
             return None;
         }
-    }
-}
-
-/// A sampled batch as an update's batch.
-fn batch(s: Sample) -> Batch {
-    Batch {
-        scalars: s.scalars.iter().flatten().copied().collect(),
-        next_scalars: s.next_scalars.iter().flatten().copied().collect(),
-        images: s.images,
-        next_images: s.next_images,
-        actions: s.actions,
-        rewards: s.rewards,
-        discounts: s.discounts,
-        weights: s.weights,
     }
 }
 
@@ -213,7 +200,8 @@ fn train(o: Options, env_steps: u32) -> (Dqn, Report) {
         if step >= WARMUP {
             let sample = replay.sample(BATCH).expect("the replay holds transitions after the warm-up");
             let slots = sample.slots.clone();
-            let stats = dqn.update(&batch(sample));
+            // The scalar inputs are all 0, so the learner's feature scaling leaves them 0.
+            let stats = dqn.update(&make_batch(&RunConfig::default(), sample));
             assert!(stats.loss.is_finite());
             replay.update_priorities(&slots, &stats.td_abs);
             report.updates += 1;

@@ -39,9 +39,6 @@ impl Inference {
     /// The greedy action of each observation (the first of equal values).
     pub fn greedy<'a>(&mut self, frames: impl IntoIterator<Item = &'a [u8]>, scalars: &[f32]) -> Vec<u32> {
         let actions = self.net.shape.actions;
-        self.q_values(frames, scalars)
-            .chunks_exact(actions)
-            .map(|q| q.iter().enumerate().fold(0, |best, (i, &x)| if x > q[best] { i } else { best }) as u32)
-            .collect()
+        self.q_values(frames, scalars).chunks_exact(actions).map(|q| super::argmax(q) as u32).collect()
     }
 }

@@ -81,12 +81,6 @@ impl FastNet {
         }
     }
 
-    /// Threads used.
-    #[must_use]
-    pub fn threads(&self) -> usize {
-        self.threads
-    }
-
     fn flat(&self) -> usize {
         self.shape.flat()
     }

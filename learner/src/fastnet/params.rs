@@ -117,13 +117,6 @@ impl Params {
         Ok(p)
     }
 
-    /// Sets every value to zero.
-    pub fn fill_zero(&mut self) {
-        for v in &mut self.values {
-            v.fill(0.0);
-        }
-    }
-
     /// The L2 norm of all values together.
     #[must_use]
     pub fn norm(&self) -> f32 {
