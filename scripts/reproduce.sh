@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
-# Reproduces the paper's experiment in one command: trains the hybrid agent (preset `paper`) and
-# the end-to-end agent (preset `end-to-end`) with the same wall-clock budget and seed, one after
+# Reproduces the paper's experiment in one command: trains the hybrid agent (preset
+# `hybrid-tuned`, or `paper` with --paper) and the end-to-end agent (`end-to-end-tuned`, or
+# `end-to-end`) with the same wall-clock budget and seed, one after
 # the other, evaluates both beside the model-based baseline on the seven routes (`actor eval`),
 # plots their learning curves (`learner plot`), and writes a results page with the table, the
 # figure, the exact commands, the budget and the machine.
@@ -8,7 +9,7 @@
 # Ctrl-C stops the current step (training writes a checkpoint); running the same command again
 # resumes: each training run continues to the same total budget, then evaluation and plotting run.
 #
-# Usage: scripts/reproduce.sh [--minutes M] [--seed S] [--runs N] [--actors N] [--envs N]
+# Usage: scripts/reproduce.sh [--minutes M] [--seed S] [--runs N] [--actors N] [--envs N] [--paper]
 #                             [--runs-dir DIR] [--out-dir DIR] [--smoke] [--no-build]
 set -euo pipefail
 
@@ -19,8 +20,11 @@ scripts/reproduce.sh — train, evaluate and plot the hybrid and the end-to-end 
   --minutes M     training budget per agent, wall-clock minutes (default 90)
   --seed S        seed of both runs: network initialisation, replay, actors (default 1)
   --runs N        evaluation runs per route (default 5)
-  --actors N      local actor processes per training run (default 2)
+  --actors N      local actor processes per training run (default 1: on 2 cores it already
+                  feeds the learner at its replay ratio)
   --envs N        environments per actor (default 4)
+  --paper         train the paper-faithful presets `paper` and `end-to-end` instead of the
+                  tuned `hybrid-tuned` and `end-to-end-tuned` (see `learner config --help`)
   --runs-dir DIR  where the two run directories go (default runs/reproduce, or runs/smoke)
   --out-dir DIR   where RESULTS.md, the figure and the JSON go (default docs, or runs/smoke)
   --smoke         a test of the pipeline: tiny camera (32x32) and network (8 filters, 32
@@ -35,8 +39,9 @@ EOF
 minutes=90
 seed=1
 runs=""
-actors=2
+actors=1
 envs=4
+paper=0
 runs_dir=""
 out_dir=""
 smoke=0
@@ -51,6 +56,7 @@ while [[ $# -gt 0 ]]; do
         --runs-dir) runs_dir="${2:?--runs-dir needs a directory}"; shift 2 ;;
         --out-dir) out_dir="${2:?--out-dir needs a directory}"; shift 2 ;;
         --smoke) smoke=1; shift ;;
+        --paper) paper=1; shift ;;
         --no-build) build=0; shift ;;
         -h|--help) usage; exit 0 ;;
         *) echo "reproduce.sh: unknown argument \`$1\` (see --help)" >&2; exit 2 ;;
@@ -95,7 +101,11 @@ fi
 mkdir -p "$runs_dir" "$out_dir/figures"
 
 agents=(hybrid end-to-end)
-declare -A preset=([hybrid]=paper [end-to-end]=end-to-end)
+if [[ "$paper" == 1 ]]; then
+    declare -A preset=([hybrid]=paper [end-to-end]=end-to-end)
+else
+    declare -A preset=([hybrid]=hybrid-tuned [end-to-end]=end-to-end-tuned)
+fi
 declare -A train_secs=()
 for agent in "${agents[@]}"; do
     dir="$runs_dir/$agent"
@@ -150,6 +160,7 @@ if [[ -n "$(git status --porcelain 2>/dev/null | grep -v '^??' || true)" ]]; the
     commit="$commit (with uncommitted changes)"
 fi
 invocation="scripts/reproduce.sh --minutes $minutes --seed $seed --runs $runs --actors $actors --envs $envs"
+[[ "$paper" == 1 ]] && invocation="$invocation --paper"
 [[ "$smoke" == 1 ]] && invocation="$invocation --smoke"
 
 results="$out_dir/RESULTS.md"
@@ -171,7 +182,8 @@ results="$out_dir/RESULTS.md"
     echo '```'
     echo
     echo "Each agent trained for at most **$minutes min** of wall-clock time (\`actor train --max-minutes\`),"
-    echo "one after the other on the same machine, seed $seed, $actors actor processes × $envs environments:"
+    echo "one after the other on the same machine, seed $seed, $actors actor process(es) × $envs environments,"
+    echo "presets \`${preset[hybrid]}\` and \`${preset[end-to-end]}\` (\`learner config --preset NAME\` prints them):"
     echo "hybrid ${train_secs[hybrid]} s, end-to-end ${train_secs[end-to-end]} s in this session (a resumed run"
     echo "counts its earlier sessions toward the budget). Evaluation: greedy (ε = 0), $runs runs per route"
     echo "(seeds 0..$((runs - 1)), different traffic), every agent scored with the paper's reward."

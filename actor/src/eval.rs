@@ -156,7 +156,8 @@ pub fn load_checkpoint(path: &Path) -> Result<GreedyAgent> {
 /// inference call of evaluation (one batched forward pass of the Q-network, the actors' fast
 /// path; the first of equal Q values).
 fn greedy_actions(agent: &mut GreedyAgent, envs: &[&Env]) -> Vec<u32> {
-    let scalars: Vec<f32> = envs.iter().flat_map(|e| learner::train::scalar_features(&agent.cfg, e.ego.speed, e.tracking.d)).collect();
+    let scalars: Vec<f32> =
+        envs.iter().flat_map(|e| learner::train::scalar_features(&agent.cfg, &learner::train::env_scalars(e))).collect();
     agent.net.greedy(envs.iter().map(|e| e.image().data.as_slice()), &scalars)
 }
 

@@ -319,7 +319,12 @@ fn step_loop(cfg: &RunConfig, link: &Link, n: usize, seed: u64, index: u32, batc
     let mut summaries: Vec<pb::EpisodeSummary> = Vec::new();
     // The wire form of an observation (it takes the image the environment already copied out).
     let wire = |o: sim_core::env::Observation| -> pb::Observation {
-        pb::Observation { image: o.image.map(|i| i.data).unwrap_or_default(), speed: o.speed, d: o.d.unwrap_or(0.0) }
+        pb::Observation {
+            image: o.image.map(|i| i.data).unwrap_or_default(),
+            speed: o.speed,
+            d: o.d.unwrap_or(0.0),
+            path: o.path.map(Vec::from).unwrap_or_default(),
+        }
     };
     let episode_seed = |rng: &mut ChaCha8Rng| rng.next_u64();
     for (k, env) in envs.iter_mut().enumerate() {
@@ -335,7 +340,7 @@ fn step_loop(cfg: &RunConfig, link: &Link, n: usize, seed: u64, index: u32, batc
             }
         }
         // One batched forward pass for all environments.
-        let scalars: Vec<f32> = envs.iter().flat_map(|e| learner::train::scalar_features(cfg, e.ego.speed, e.tracking.d)).collect();
+        let scalars: Vec<f32> = envs.iter().flat_map(|e| learner::train::scalar_features(cfg, &learner::train::env_scalars(e))).collect();
         let greedy = net.greedy(envs.iter().map(|e| e.image().data.as_slice()), &scalars);
         let epsilon = cfg.epsilon(index, total_steps);
         for (k, env) in envs.iter_mut().enumerate() {

@@ -18,8 +18,10 @@ pub struct TrainArgs {
     /// Run configuration (TOML; see `learner config`). Defaults when omitted.
     #[arg(long, conflicts_with = "preset")]
     pub config: Option<PathBuf>,
-    /// Start from a named configuration instead: `paper` (the paper's hybrid agent) or
-    /// `end-to-end` (its baseline without d). A file can do the same with `preset = "NAME"`.
+    /// Start from a named configuration instead: `paper` (the paper's hybrid agent),
+    /// `end-to-end` (its baseline without d), or `hybrid-tuned` / `end-to-end-tuned` (both tuned
+    /// for a short CPU budget; see `learner config --help`). A file can do the same with
+    /// `preset = "NAME"`.
     #[arg(long, value_name = "NAME")]
     pub preset: Option<String>,
     /// Seed of the network initialisation and replay sampling (`agent.seed`) and of the actors'

@@ -165,7 +165,7 @@ pub async fn ingest(seconds: f64) -> Result<serde_json::Value> {
                     env: 0,
                     episode,
                     t,
-                    obs: Some(pb::Observation { image: frame.clone(), speed: 1.0, d: 0.5 }),
+                    obs: Some(pb::Observation { image: frame.clone(), speed: 1.0, d: 0.5, path: Vec::new() }),
                     action: 1,
                     reward: 0.1,
                     terminated: false,

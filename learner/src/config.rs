@@ -11,7 +11,8 @@
 //!
 //! Extensions beyond the paper are switches of `[agent]`, all off in the defaults and in both
 //! presets: `double_dqn`, `prioritized_replay` (with `priority_alpha`, `priority_beta`), `n_step`
-//! (1 = the paper's one-step targets) and `per_actor_epsilon` (Ape-X exploration).
+//! (1 = the paper's one-step targets), `path_features` (signed planner inputs for the hybrid agent)
+//! and `per_actor_epsilon` (Ape-X exploration).
 
 use std::path::Path;
 
@@ -22,9 +23,15 @@ use sim_core::config::{EnvConfig, Variant};
 use sim_core::reward::RewardConfig;
 
 /// The named presets, with what each is.
-pub const PRESETS: [(&str, &str); 2] = [
+pub const PRESETS: [(&str, &str); 4] = [
     ("paper", "the paper's hybrid agent: d in the observation, r_w in the reward; plain one-step DQN, uniform replay"),
     ("end-to-end", "the paper's baseline: the same network and training, camera and speed only (no d input, no r_w)"),
+    (
+        "hybrid-tuned",
+        "`paper` tuned for a 2-core CPU: 48x48 camera, double DQN, 3-step returns, target copied every 250 updates, \
+         faster exploration decay, and the planner's signed path features as inputs",
+    ),
+    ("end-to-end-tuned", "`end-to-end` with the same tuning (no planner input, so no path features)"),
 ];
 
 /// The whole configuration of a run.
@@ -81,6 +88,10 @@ pub struct AgentConfig {
     pub priority_beta: f32,
     /// Extension switch: n-step returns, 1..=32 (default 1, the paper's one-step targets).
     pub n_step: usize,
+    /// Extension switch, hybrid agent only: the network also sees the planner's path as signed
+    /// numbers (lateral offset, heading angles to the route near and 25 m ahead; sim-core's
+    /// `Env::path_features`), not only the paper's unsigned d (default false).
+    pub path_features: bool,
     /// Exploration: ε decays linearly from `epsilon_start` to `epsilon_end` over
     /// `epsilon_decay_steps` environment steps (defaults 1.0, 0.05, 200 000).
     pub epsilon_start: f32,
@@ -119,6 +130,7 @@ impl Default for AgentConfig {
             priority_alpha: 0.6,
             priority_beta: 0.4,
             n_step: 1,
+            path_features: false,
             epsilon_start: 1.0,
             epsilon_end: 0.05,
             epsilon_decay_steps: 200_000,
@@ -214,11 +226,15 @@ impl RunConfig {
     /// batch, replay size, exploration schedule, camera resolution: 84×84 gray) keeps this
     /// program's defaults. `end-to-end` is the same with `env.variant = "end_to_end"`: the network
     /// sees camera and speed only and the reward has no r_w (SPEC §1, the paper's baseline).
+    /// `hybrid-tuned` and `end-to-end-tuned` are those two with the same tuning for a short
+    /// budget on a CPU, and the hybrid one sees the planner's path features (`agent.path_features`).
     pub fn preset(name: &str) -> Result<Self, String> {
         let mut cfg = Self::default();
-        let variant = match name {
-            "paper" => Variant::Hybrid,
-            "end-to-end" => Variant::EndToEnd,
+        let (variant, tuned) = match name {
+            "paper" => (Variant::Hybrid, false),
+            "end-to-end" => (Variant::EndToEnd, false),
+            "hybrid-tuned" => (Variant::Hybrid, true),
+            "end-to-end-tuned" => (Variant::EndToEnd, true),
             other => {
                 let names: Vec<&str> = PRESETS.iter().map(|p| p.0).collect();
                 return Err(format!("unknown preset `{other}`: expected one of {}", names.join(", ")));
@@ -251,7 +267,20 @@ impl RunConfig {
         a.double_dqn = false;
         a.prioritized_replay = false;
         a.n_step = 1;
+        a.path_features = false;
         a.per_actor_epsilon = false;
+        if tuned {
+            // What a 90-minute budget on two cores asks for (docs/RESULTS.md): a smaller image
+            // makes updates and actor inference about 3x cheaper; double DQN, 3-step returns and
+            // frequent target copies spread the reward faster per update.
+            let camera = cfg.env.camera.as_mut().expect("set above");
+            (camera.width, camera.height) = (48, 48);
+            a.double_dqn = true;
+            a.n_step = 3;
+            a.target_update_period = 250;
+            a.epsilon_decay_steps = 100_000;
+            a.path_features = variant == Variant::Hybrid;
+        }
         Ok(cfg)
     }
 
@@ -292,6 +321,9 @@ impl RunConfig {
                 "min_replay",
                 format!("{} must be between batch_size ({}) and replay_capacity ({})", a.min_replay, a.batch_size, a.replay_capacity),
             );
+        }
+        if a.path_features && self.env.variant != Variant::Hybrid {
+            return bad("path_features", "needs env.variant = \"hybrid\": the end-to-end agent has no planner input".to_owned());
         }
         if a.replay_max_bytes < 1 << 20 {
             return bad("replay_max_bytes", format!("{} is below 1 MiB", a.replay_max_bytes));
@@ -364,10 +396,12 @@ impl RunConfig {
         }
     }
 
-    /// Scalar inputs of the network besides the image: speed, and d for the hybrid agent.
+    /// Scalar inputs of the network besides the image: speed; d for the hybrid agent; and its
+    /// path features with `agent.path_features`.
     #[must_use]
     pub fn scalar_inputs(&self) -> usize {
         match self.env.variant {
+            Variant::Hybrid if self.agent.path_features => 2 + sim_core::env::PATH_FEATURES,
             Variant::Hybrid => 2,
             Variant::EndToEnd => 1,
         }
@@ -412,13 +446,15 @@ mod tests {
         assert_eq!(e.to_string(), "config file run.toml: field `agent.gamma`: 1.5 must be in (0, 1]");
         let e = RunConfig::from_toml("[env.reward]\nd0 = -2\n", "run.toml").unwrap_err();
         assert!(e.to_string().contains("field `env.reward.d0`"), "{e}");
+        let e = RunConfig::from_toml("[agent]\npath_features = true\n[env]\nvariant = \"end_to_end\"\n", "run.toml").unwrap_err();
+        assert!(e.to_string().contains("field `agent.path_features`: needs env.variant = \"hybrid\""), "{e}");
         let e = RunConfig::from_toml("[agent]\nbatch = 3\n", "run.toml").unwrap_err();
         assert!(e.to_string().contains("unknown field `batch`"), "{e}");
     }
 
     #[test]
     fn presets_are_the_paper_with_every_extension_off() {
-        for (name, _) in PRESETS {
+        for name in ["paper", "end-to-end"] {
             let cfg = RunConfig::preset(name).unwrap();
             cfg.validate().unwrap();
             assert_eq!(cfg.preset.as_deref(), Some(name));
@@ -434,7 +470,27 @@ mod tests {
         let same = RunConfig { preset: paper.preset.clone(), env: EnvConfig { variant: Variant::Hybrid, ..e2e.env.clone() }, ..e2e };
         assert_eq!(same, paper);
         let e = RunConfig::preset("papr").unwrap_err();
-        assert_eq!(e, "unknown preset `papr`: expected one of paper, end-to-end");
+        assert_eq!(e, "unknown preset `papr`: expected one of paper, end-to-end, hybrid-tuned, end-to-end-tuned");
+    }
+
+    #[test]
+    fn tuned_presets_share_the_tuning_and_differ_in_the_planner_inputs() {
+        let hybrid = RunConfig::preset("hybrid-tuned").unwrap();
+        let e2e = RunConfig::preset("end-to-end-tuned").unwrap();
+        hybrid.validate().unwrap();
+        e2e.validate().unwrap();
+        assert_eq!((hybrid.scalar_inputs(), e2e.scalar_inputs()), (5, 1));
+        assert!(hybrid.agent.double_dqn && hybrid.agent.n_step == 3 && hybrid.agent.path_features);
+        // Reward and network are the paper's.
+        let paper = RunConfig::preset("paper").unwrap();
+        assert_eq!((&hybrid.env.reward, hybrid.agent.conv_filters, hybrid.agent.hidden), (&paper.env.reward, 64, 256));
+        let same = RunConfig {
+            preset: hybrid.preset.clone(),
+            env: EnvConfig { variant: Variant::Hybrid, ..e2e.env.clone() },
+            agent: AgentConfig { path_features: true, ..e2e.agent.clone() },
+            ..e2e
+        };
+        assert_eq!(same, hybrid);
     }
 
     #[test]
@@ -456,7 +512,10 @@ mod tests {
     #[test]
     fn an_unknown_preset_names_the_field_and_the_choices() {
         let e = RunConfig::from_toml("preset = \"fast\"\n", "run.toml").unwrap_err();
-        assert_eq!(e.to_string(), "config file run.toml: field `preset`: unknown preset `fast`: expected one of paper, end-to-end");
+        assert_eq!(
+            e.to_string(),
+            "config file run.toml: field `preset`: unknown preset `fast`: expected one of paper, end-to-end, hybrid-tuned, end-to-end-tuned"
+        );
         let e = RunConfig::from_toml("preset = 3\n", "run.toml").unwrap_err();
         assert!(e.to_string().contains("preset"), "{e}");
         // Values set beside a preset are still validated.

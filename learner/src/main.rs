@@ -85,9 +85,11 @@ enum Command {
         /// A configuration file to validate and complete.
         #[arg(long, conflicts_with = "preset")]
         config: Option<PathBuf>,
-        /// A named preset instead: `paper` (the paper's hybrid agent, every extension off) or
-        /// `end-to-end` (its baseline: no d input, no r_w). Files can start from one with
-        /// `preset = "NAME"`.
+        /// A named preset instead: `paper` (the paper's hybrid agent, every extension off),
+        /// `end-to-end` (its baseline: no d input, no r_w), `hybrid-tuned` (`paper` with a 48x48
+        /// camera, double DQN, 3-step returns, target copies every 250 updates, ε decayed over
+        /// 100k steps, and the planner's signed path features as inputs) or `end-to-end-tuned`
+        /// (`end-to-end` with the same tuning). Files can start from one with `preset = "NAME"`.
         #[arg(long, value_name = "NAME")]
         preset: Option<String>,
     },

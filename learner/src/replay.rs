@@ -8,6 +8,7 @@ use std::collections::{HashMap, VecDeque};
 
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
+use sim_core::env::PATH_FEATURES;
 
 /// Sizes and options of a replay buffer.
 #[derive(Debug, Clone, PartialEq)]
@@ -26,6 +27,11 @@ pub struct ReplayConfig {
     pub seed: u64,
 }
 
+/// What is stored with each frame besides the image: speed (m/s), d (m) and the planner's path
+/// features (sim-core's `Env::path_features`). The run's config picks which of them the network
+/// sees (`train::scalar_features`), so one buffer layout serves every variant.
+pub type RawScalars = [f32; 2 + PATH_FEATURES];
+
 /// One environment step as it arrives from an actor (the domain form of the wire `Step`).
 #[derive(Debug, Clone, PartialEq)]
 pub struct StepRecord<'a> {
@@ -35,10 +41,19 @@ pub struct StepRecord<'a> {
     pub image: &'a [u8],
     pub speed: f32,
     pub d: f32,
+    /// The planner's path features (zeros when the actor sent none).
+    pub path: [f32; PATH_FEATURES],
     pub action: u32,
     pub reward: f32,
     pub terminated: bool,
     pub truncated: bool,
+}
+
+/// Packs one observation's scalars.
+#[must_use]
+pub fn raw_scalars(speed: f32, d: f32, path: [f32; PATH_FEATURES]) -> RawScalars {
+    let [lateral, near, far] = path;
+    [speed, d, lateral, near, far]
 }
 
 /// A transition between two stored frames.
@@ -72,9 +87,9 @@ pub struct Sample {
     /// Frames, concatenated, `frame_bytes` each.
     pub images: Vec<u8>,
     pub next_images: Vec<u8>,
-    /// (speed, d) of each observation.
-    pub scalars: Vec<[f32; 2]>,
-    pub next_scalars: Vec<[f32; 2]>,
+    /// The raw scalars of each observation.
+    pub scalars: Vec<RawScalars>,
+    pub next_scalars: Vec<RawScalars>,
     pub actions: Vec<u32>,
     pub rewards: Vec<f32>,
     pub discounts: Vec<f32>,
@@ -88,7 +103,7 @@ pub struct Replay {
     cfg: ReplayConfig,
     /// Frame ring: `frame_slots` frames; frame id `i` lives in slot `i % frame_slots`.
     frames: Vec<u8>,
-    frame_scalars: Vec<[f32; 2]>,
+    frame_scalars: Vec<RawScalars>,
     frame_slots: usize,
     /// Ids of the oldest and next frame.
     first_frame: u64,
@@ -111,14 +126,14 @@ impl Replay {
     /// starts), or fewer if the byte cap says so.
     #[must_use]
     pub fn new(cfg: ReplayConfig) -> Self {
-        let per_frame = cfg.frame_bytes as u64 + 8;
+        let per_frame = (cfg.frame_bytes + std::mem::size_of::<RawScalars>()) as u64;
         let by_bytes = (cfg.max_bytes.saturating_sub(cfg.capacity as u64 * TRANSITION_BYTES) / per_frame.max(1)) as usize;
         let frame_slots = (cfg.capacity + cfg.capacity / 8 + 64).min(by_bytes).max(2);
         let priorities = cfg.prioritized.then(|| SumTree::new(cfg.capacity));
         let rng = ChaCha8Rng::seed_from_u64(cfg.seed);
         Self {
             frames: vec![0; frame_slots * cfg.frame_bytes],
-            frame_scalars: vec![[0.0; 2]; frame_slots],
+            frame_scalars: vec![[0.0; 2 + PATH_FEATURES]; frame_slots],
             frame_slots,
             first_frame: 0,
             next_frame: 0,
@@ -167,7 +182,7 @@ impl Replay {
     pub fn add_steps(&mut self, actor: &str, steps: &[StepRecord<'_>]) -> usize {
         let mut stored = 0;
         for s in steps {
-            let frame = self.push_frame(s.image, [s.speed, s.d]);
+            let frame = self.push_frame(s.image, raw_scalars(s.speed, s.d, s.path));
             let key = (actor.to_owned(), s.env);
             let mut stream = self.streams.remove(&key).unwrap_or_default();
             let continues = s.t > 0 && stream.last_frame.is_some() && stream.episode == s.episode && stream.t + 1 == s.t;
@@ -211,7 +226,7 @@ impl Replay {
         1
     }
 
-    fn push_frame(&mut self, image: &[u8], scalars: [f32; 2]) -> u64 {
+    fn push_frame(&mut self, image: &[u8], scalars: RawScalars) -> u64 {
         let id = self.next_frame;
         let slot = (id % self.frame_slots as u64) as usize;
         let fb = self.cfg.frame_bytes;
@@ -248,7 +263,7 @@ impl Replay {
         }
     }
 
-    fn frame(&self, id: u64) -> (&[u8], [f32; 2]) {
+    fn frame(&self, id: u64) -> (&[u8], RawScalars) {
         let slot = (id % self.frame_slots as u64) as usize;
         let fb = self.cfg.frame_bytes;
         (&self.frames[slot * fb..(slot + 1) * fb], self.frame_scalars[slot])
@@ -384,6 +399,7 @@ mod tests {
                     image: &[],
                     speed: t as f32,
                     d: 0.0,
+                    path: [0.0; 3],
                     action: t % 3,
                     reward: t as f32,
                     terminated: terminal && t == len,
@@ -449,7 +465,7 @@ mod tests {
         }
         assert_eq!(r.len(), 10);
         // Byte cap: 20 frames of 1000 bytes at most.
-        let mut small = Replay::new(ReplayConfig { frame_bytes: 1000, max_bytes: 20 * 1008 + 1000 * TRANSITION_BYTES, ..cfg(1000) });
+        let mut small = Replay::new(ReplayConfig { frame_bytes: 1000, max_bytes: 20 * 1020 + 1000 * TRANSITION_BYTES, ..cfg(1000) });
         let img = vec![7u8; 1000];
         for t in 0..100u32 {
             let rec = StepRecord {
@@ -459,6 +475,7 @@ mod tests {
                 image: &img,
                 speed: 0.0,
                 d: 0.0,
+                path: [0.0; 3],
                 action: 0,
                 reward: 0.0,
                 terminated: false,
@@ -467,7 +484,7 @@ mod tests {
             small.add_steps("a", &[rec]);
         }
         assert!(small.frames_held() <= 20, "{}", small.frames_held());
-        assert!(small.bytes() <= 20 * 1008 + 1000 * TRANSITION_BYTES);
+        assert!(small.bytes() <= 20 * 1020 + 1000 * TRANSITION_BYTES);
         assert!(small.len() <= 19 && !small.is_empty());
     }
 

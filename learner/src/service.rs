@@ -14,6 +14,7 @@ use tonic::{Request, Response, Status, Streaming};
 use crate::metrics::EpisodeLine;
 use crate::replay::StepRecord;
 use crate::state::{ActorRecord, EpisodeOutcome, Shared};
+use sim_core::env::PATH_FEATURES;
 
 /// Most steps one batch may carry.
 pub const MAX_STEPS_PER_BATCH: usize = 4096;
@@ -160,7 +161,21 @@ fn validate(shared: &Shared, b: &pb::ExperienceBatch) -> Result<(), Reject> {
         if s.t > 0 && s.action >= actions {
             return Err(Reject::Invalid(format!("batch {} step {i}: action {} is out of range 0..{actions}", b.seq, s.action)));
         }
-        for (name, v) in [("reward", s.reward), ("speed", obs.speed), ("d", obs.d)] {
+        match obs.path.len() {
+            0 if shared.cfg.agent.path_features => {
+                return Err(Reject::Invalid(format!(
+                    "batch {} step {i}: no path features, and this run's network needs them (agent.path_features = true); \
+                     update the actor",
+                    b.seq
+                )));
+            }
+            0 | PATH_FEATURES => {}
+            n => {
+                return Err(Reject::Invalid(format!("batch {} step {i}: {n} path features; expected {PATH_FEATURES} or none", b.seq)));
+            }
+        }
+        let path = obs.path.iter().map(|&v| ("path", v));
+        for (name, v) in [("reward", s.reward), ("speed", obs.speed), ("d", obs.d)].into_iter().chain(path) {
             if !v.is_finite() {
                 return Err(Reject::Invalid(format!("batch {} step {i}: {name} is {v}, not a finite number", b.seq)));
             }
@@ -215,6 +230,7 @@ fn ingest(shared: &Shared, b: &pb::ExperienceBatch) -> Result<pb::BatchAck, Stat
                 image: &obs.image,
                 speed: obs.speed,
                 d: obs.d,
+                path: obs.path.as_slice().try_into().unwrap_or_default(),
                 action: s.action,
                 reward: s.reward,
                 terminated: s.terminated,

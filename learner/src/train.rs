@@ -9,24 +9,38 @@ use std::time::{Duration, Instant};
 use crate::checkpoint;
 use crate::config::RunConfig;
 use crate::dqn::{Batch, Dqn};
-use crate::replay::Sample;
+use crate::replay::{RawScalars, Sample, raw_scalars};
 use crate::state::{PublishedWeights, Shared};
+use sim_core::config::Variant;
 
-/// The network's scalar inputs from an observation's speed (m/s) and d (m): speed/v0, and d/d0
-/// for the hybrid agent — scaled so that typical values are near 1.
+/// The network's scalar inputs from an observation's raw scalars: speed/v0; d/d0 for the hybrid
+/// agent; and its path features with `agent.path_features` — scaled so that typical values are
+/// near 1.
 #[must_use]
-pub fn scalar_features(cfg: &RunConfig, speed: f32, d: f32) -> Vec<f32> {
+pub fn scalar_features(cfg: &RunConfig, raw: &RawScalars) -> Vec<f32> {
     let r = &cfg.env.reward;
+    let [speed, d, lateral, near, far] = *raw;
     match cfg.env.variant {
-        sim_core::config::Variant::Hybrid => vec![speed / r.v0(), d / r.d0],
-        sim_core::config::Variant::EndToEnd => vec![speed / r.v0()],
+        // Angles are in radians already; the lateral offset is scaled by a lane's width.
+        Variant::Hybrid if cfg.agent.path_features => vec![speed / r.v0(), d / r.d0, lateral / LANE_WIDTH, near, far],
+        Variant::Hybrid => vec![speed / r.v0(), d / r.d0],
+        Variant::EndToEnd => vec![speed / r.v0()],
     }
+}
+
+/// Scale of the lateral path feature, metres.
+const LANE_WIDTH: f32 = 3.5;
+
+/// The raw scalars of an environment's current state, as the actor sends them.
+#[must_use]
+pub fn env_scalars(env: &sim_core::env::Env) -> RawScalars {
+    raw_scalars(env.ego.speed, env.tracking.d, env.path_features())
 }
 
 /// Turns sampled transitions into an update's batch (the frames are used as they are).
 #[must_use]
 pub fn make_batch(cfg: &RunConfig, s: Sample) -> Batch {
-    let scalars = |sc: &[[f32; 2]]| -> Vec<f32> { sc.iter().flat_map(|x| scalar_features(cfg, x[0], x[1])).collect() };
+    let scalars = |sc: &[RawScalars]| -> Vec<f32> { sc.iter().flat_map(|x| scalar_features(cfg, x)).collect() };
     Batch {
         scalars: scalars(&s.scalars),
         next_scalars: scalars(&s.next_scalars),

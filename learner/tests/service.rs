@@ -52,7 +52,7 @@ fn steps(episode: u64, t0: u32, n: u32, image_bytes: usize) -> Vec<pb::Step> {
             env: 0,
             episode,
             t,
-            obs: Some(pb::Observation { image: vec![(t * 7 % 256) as u8; image_bytes], speed: t as f32 * 0.5, d: 1.0 }),
+            obs: Some(pb::Observation { image: vec![(t * 7 % 256) as u8; image_bytes], speed: t as f32 * 0.5, d: 1.0, path: Vec::new() }),
             action: t % 6,
             reward: 0.1,
             terminated: false,

@@ -11,13 +11,20 @@ use crate::camera::{BirdsEye, Camera, Image, SceneBox, car_box};
 use crate::collision::{CollisionKind, Obb, leaves_drivable_area};
 use crate::config::{ConfigError, EnvConfig, Variant};
 use crate::map::LaneId;
-use crate::math::{Vec2, left_normal};
+use crate::math::{Vec2, heading_of, left_normal, wrap_angle};
 use crate::reward::{Outcome, RewardTerms};
 use crate::route::{Route, RouteTracker, Tracking};
 use crate::scenario::{Scenario, eval_route, random_route};
 use crate::town::Town;
 use crate::traffic::{EgoRequest, EgoView, RELEASE_DISTANCE, Traffic};
 use crate::vehicle::{Action, VehicleState};
+
+/// How many numbers [`Env::path_features`] gives.
+pub const PATH_FEATURES: usize = 3;
+
+/// Route distance ahead of the ego vehicle whose direction is the far path feature, metres: far
+/// enough to see a junction's turn before the vehicle must brake for it.
+const FAR_PREVIEW: f32 = 25.0;
 
 /// What the agent observes.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -26,6 +33,9 @@ pub struct Observation {
     pub speed: f32,
     /// Distance to the closest route waypoint, metres (hybrid variant only).
     pub d: Option<f32>,
+    /// The planner's path relative to the ego vehicle (hybrid variant only): see
+    /// [`Env::path_features`].
+    pub path: Option<[f32; PATH_FEATURES]>,
     /// The front camera's image, if a camera is configured.
     #[serde(skip)]
     pub image: Option<Image>,
@@ -237,8 +247,24 @@ impl Env {
         Observation {
             speed: self.ego.speed,
             d: (self.cfg.variant == Variant::Hybrid).then_some(self.tracking.d),
+            path: (self.cfg.variant == Variant::Hybrid).then(|| self.path_features()),
             image: self.camera.is_some().then(|| self.image.clone()),
         }
+    }
+
+    /// The planner's path as seen from the ego vehicle, beyond the paper's d (which has no sign and
+    /// no direction): the signed lateral offset from the route's centre line (metres, positive to
+    /// the left), the angle from the ego heading to the route point a pure-pursuit lookahead ahead
+    /// (radians, positive to the left), and the same angle to the route point 25 m ahead, which
+    /// previews turns and curves.
+    #[must_use]
+    pub fn path_features(&self) -> [f32; PATH_FEATURES] {
+        let s = self.tracking.s;
+        let angle_to = |ahead: f32| {
+            let to = self.route.path.point_at(s + ahead) - self.ego.pos;
+            if to.length_squared() < 1e-6 { 0.0 } else { wrap_angle(heading_of(to) - self.ego.heading) }
+        };
+        [self.tracking.lateral, angle_to(crate::expert::lookahead(self.ego.speed)), angle_to(FAR_PREVIEW)]
     }
 
     /// The last front-camera image (empty without a camera).

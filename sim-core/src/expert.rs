@@ -14,6 +14,12 @@ const LOOKAHEAD: f32 = 60.0;
 /// Half-width of the corridor along the route in which another vehicle counts as ahead, metres.
 const CORRIDOR: f32 = 2.6;
 
+/// The pure-pursuit lookahead at speed `v` (m/s), metres.
+#[must_use]
+pub fn lookahead(v: f32) -> f32 {
+    (0.5 * v + 3.0).clamp(4.0, 12.0)
+}
+
 /// The reference driver. Stateless: it reads the environment's ground truth each step.
 #[derive(Debug, Clone)]
 pub struct Expert {
@@ -38,7 +44,7 @@ impl Expert {
         let v = ego.speed;
 
         // Pure pursuit from the rear axle toward a point ahead on the route.
-        let lookahead = (0.5 * v + 3.0).clamp(4.0, 12.0);
+        let lookahead = lookahead(v);
         let rear = ego.pos - ego.forward() * (p.wheelbase / 2.0);
         let target = route.path.point_at(s + lookahead);
         let to_target = target - rear;

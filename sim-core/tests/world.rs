@@ -280,3 +280,39 @@ fn random_routes_respect_the_length_range() {
         assert!((100.0..=110.0).contains(&len), "seed {seed}: route of {len} m outside [100, 110]");
     }
 }
+
+#[test]
+fn path_features_preview_the_turn_and_point_the_way_back_to_the_route() {
+    let town = Town::default_town();
+    let expert = Expert::default();
+    for (route, sign) in [(EvalRoute::LeftTurn, 1.0), (EvalRoute::RightTurn, -1.0)] {
+        let mut env = env_with(&town, config());
+        let obs = env.reset(3, Scenario::Eval(route)).expect("turn route");
+        assert_eq!(obs.path, Some(env.path_features()));
+        // The expert follows the route: it stays near the centre line, and before the junction the
+        // far preview turns toward the side of the turn while the near angle stays small.
+        let (mut far_max, mut near_max) = (0.0f32, 0.0f32);
+        for _ in 0..150 {
+            let [lateral, near, far] = env.path_features();
+            assert!(lateral.abs() < 2.0, "{route:?}: lateral {lateral}");
+            far_max = far_max.max(sign * far);
+            near_max = near_max.max(near.abs());
+            if env.step(expert.act(&env)).expect("running").terminated {
+                break;
+            }
+        }
+        assert!(far_max > 0.5, "{route:?}: far preview never pointed into the turn ({far_max} rad)");
+        assert!(near_max < far_max, "{route:?}: near angle {near_max} rad, far {far_max} rad");
+    }
+    // Off the centre line, to the left of the route: the lateral offset is positive and both
+    // angles point back to the right (negative).
+    let mut env = env_with(&town, config());
+    env.reset(3, Scenario::Eval(EvalRoute::StraightHighway)).expect("straight route");
+    let left = sim_core::math::left_normal(env.route.path.tangent_at(env.tracking.s));
+    env.ego.pos += left * 1.5;
+    env.tracking.lateral += 1.5;
+    let [lateral, near, far] = env.path_features();
+    assert!(lateral > 1.0 && near < -0.05 && far < 0.0, "lateral {lateral}, near {near}, far {far}");
+    let mut e2e = env_with(&town, EnvConfig { variant: Variant::EndToEnd, ..config() });
+    assert_eq!(e2e.reset(3, Scenario::Eval(EvalRoute::StraightHighway)).expect("straight").path, None);
+}
