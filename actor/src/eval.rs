@@ -706,6 +706,19 @@ mod tests {
     }
 
     #[test]
+    fn a_hybrid_checkpoint_with_path_features_sees_them() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut cfg = tiny_config(Variant::Hybrid);
+        cfg.agent.path_features = true;
+        write_checkpoint(dir.path(), &cfg);
+        let agent = load_checkpoint(dir.path()).unwrap();
+        assert_eq!(learner::serve::net_shape(&agent.cfg).scalars, 5, "speed, d and three path features");
+        let mut agents = vec![Agent { name: "hybrid".into(), driver: Driver::Greedy(Box::new(agent)) }];
+        let row = evaluate(&mut agents, &opts(&[EvalRoute::RightTurn], 1)).unwrap().agents.remove(0).routes.remove(0);
+        assert!(row.mean_return.is_finite() && row.mean_steps > 0.0, "{row:?}");
+    }
+
+    #[test]
     fn what_is_not_a_checkpoint_is_named() {
         let dir = tempfile::tempdir().unwrap();
         let e = load_checkpoint(dir.path()).unwrap_err().to_string();

@@ -133,3 +133,24 @@ fn wait_for_data(shared: &Shared) {
     let _ = cv.wait_timeout(guard, Duration::from_millis(50)).expect("wait lock");
     shared.stats.lock().expect("stats lock").idle_secs += started.elapsed().as_secs_f64();
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn scalar_features_follow_the_variant_and_the_path_switch() {
+        let raw = raw_scalars(13.889, 4.0, [1.75, -0.2, 0.6]);
+        let mut cfg = RunConfig::preset("paper").unwrap();
+        let close = |got: Vec<f32>, want: &[f32]| {
+            assert_eq!(got.len(), want.len(), "{got:?}");
+            assert!(got.iter().zip(want).all(|(g, w)| (g - w).abs() < 1e-4), "{got:?} vs {want:?}");
+        };
+        close(scalar_features(&cfg, &raw), &[1.0, 0.5]);
+        cfg.agent.path_features = true;
+        close(scalar_features(&cfg, &raw), &[1.0, 0.5, 0.5, -0.2, 0.6]);
+        assert_eq!(scalar_features(&cfg, &raw).len(), cfg.scalar_inputs());
+        let e2e = RunConfig::preset("end-to-end-tuned").unwrap();
+        close(scalar_features(&e2e, &raw), &[1.0]);
+    }
+}

@@ -109,10 +109,16 @@ async fn good_batches_are_stored_bad_ones_refused_and_training_publishes_weights
     wrong_action[1].action = 6;
     let mut nan = steps(5, 0, 3, img);
     nan[2].reward = f32::NAN;
+    let mut short_path = steps(5, 0, 3, img);
+    short_path[1].obs.as_mut().unwrap().path = vec![0.5, 0.1];
+    let mut nan_path = steps(5, 0, 3, img);
+    nan_path[1].obs.as_mut().unwrap().path = vec![0.5, f32::NAN, 0.0];
     let cases: Vec<(Vec<pb::Step>, Code, &str)> = vec![
         (wrong_size, Code::InvalidArgument, "image has 255 bytes; this run's camera is 16x16x1 = 256 bytes"),
         (wrong_action, Code::InvalidArgument, "action 6 is out of range 0..6"),
         (nan, Code::InvalidArgument, "reward is NaN"),
+        (short_path, Code::InvalidArgument, "2 path features; expected 3 or none"),
+        (nan_path, Code::InvalidArgument, "path is NaN"),
         (steps(5, 0, 5000, img), Code::ResourceExhausted, "5000 steps; at most 4096"),
     ];
     for (k, (s, code, text)) in cases.into_iter().enumerate() {
@@ -141,11 +147,11 @@ async fn good_batches_are_stored_bad_ones_refused_and_training_publishes_weights
     assert!(st.weights_version > 1, "weights published: {st:?}");
     assert!(st.learner_step >= 2);
     assert_eq!((st.transitions_stored, st.replay_size), (70, 70));
-    assert_eq!(st.batches_rejected, 4, "four invalid batches (the unknown actor is refused before validation)");
-    assert_eq!(st.transitions_rejected, 2 + 2 + 2 + 4999);
+    assert_eq!(st.batches_rejected, 6, "six invalid batches (the unknown actor is refused before validation)");
+    assert_eq!(st.transitions_rejected, 2 + 2 + 2 + 2 + 2 + 4999);
     let by_name = |n: &str| st.actors.iter().find(|a| a.name == n).unwrap().clone();
     assert_eq!((by_name("good").transitions, by_name("good").rejected_batches), (70, 0));
-    assert_eq!((by_name("bad").transitions, by_name("bad").rejected_batches), (0, 4));
+    assert_eq!((by_name("bad").transitions, by_name("bad").rejected_batches), (0, 6));
     assert!(by_name("good").connected);
     assert_eq!(st.variant, "hybrid");
 
