@@ -66,13 +66,9 @@ while [[ $# -gt 0 ]]; do
         *) echo "ablation.sh: unknown argument \`$1\` (see --help)" >&2; exit 2 ;;
     esac
 done
-for pair in "minutes:$minutes" "seed:$seed" "actors:$actors" "envs:$envs" "runs:$runs"; do
-    name="${pair%%:*}" value="${pair#*:}"
-    if ! [[ "$value" =~ ^[0-9]+([.][0-9]+)?$ ]] || [[ "$value" =~ ^0+([.]0+)?$ ]]; then
-        echo "ablation.sh: --$name $value must be a positive number" >&2
-        exit 2
-    fi
-done
+# shellcheck source=scripts/lib.sh
+source "$(dirname "$0")/lib.sh"
+require_positive ablation.sh "minutes:$minutes" "seed:$seed" "actors:$actors" "envs:$envs" "runs:$runs"
 names=()
 for v in "${variants[@]}"; do names+=("${v%%|*}"); done
 if [[ -n "$only" ]]; then

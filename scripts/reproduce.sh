@@ -62,13 +62,9 @@ while [[ $# -gt 0 ]]; do
         *) echo "reproduce.sh: unknown argument \`$1\` (see --help)" >&2; exit 2 ;;
     esac
 done
-for pair in "minutes:$minutes" "seed:$seed" "actors:$actors" "envs:$envs" "runs:${runs:-1}"; do
-    name="${pair%%:*}" value="${pair#*:}"
-    if ! [[ "$value" =~ ^[0-9]+([.][0-9]+)?$ ]] || [[ "$value" =~ ^0+([.]0+)?$ ]]; then
-        echo "reproduce.sh: --$name $value must be a positive number" >&2
-        exit 2
-    fi
-done
+# shellcheck source=scripts/lib.sh
+source "$(dirname "$0")/lib.sh"
+require_positive reproduce.sh "minutes:$minutes" "seed:$seed" "actors:$actors" "envs:$envs" "runs:${runs:-1}"
 if [[ "$smoke" == 1 ]]; then
     runs_dir="${runs_dir:-runs/smoke}"
     out_dir="${out_dir:-runs/smoke}"
@@ -172,7 +168,7 @@ results="$out_dir/RESULTS.md"
         echo "> $minutes min per agent. The numbers below say nothing about the method; they show the pipeline"
         echo "> works end to end. The experiment is \`scripts/reproduce.sh\` (90 min per agent)."
     elif awk "BEGIN { exit !($minutes < 90) }"; then
-        echo "> Budget of $minutes min per agent, below the experiment's 90 min."
+        echo "> Budget of $minutes min per agent; the experiment allows up to 90."
     fi
     echo
     echo "Reproduce with:"
