@@ -118,6 +118,11 @@ pub struct Replay {
     rng: ChaCha8Rng,
 }
 
+/// Bytes a stored frame takes: the image and its raw scalars (counted against the byte cap).
+fn frame_cost(frame_bytes: usize) -> u64 {
+    (frame_bytes + std::mem::size_of::<RawScalars>()) as u64
+}
+
 /// Per-transition bookkeeping bytes (counted against the byte cap).
 const TRANSITION_BYTES: u64 = std::mem::size_of::<Transition>() as u64 + 8;
 
@@ -126,14 +131,14 @@ impl Replay {
     /// starts), or fewer if the byte cap says so.
     #[must_use]
     pub fn new(cfg: ReplayConfig) -> Self {
-        let per_frame = (cfg.frame_bytes + std::mem::size_of::<RawScalars>()) as u64;
+        let per_frame = frame_cost(cfg.frame_bytes);
         let by_bytes = (cfg.max_bytes.saturating_sub(cfg.capacity as u64 * TRANSITION_BYTES) / per_frame.max(1)) as usize;
         let frame_slots = (cfg.capacity + cfg.capacity / 8 + 64).min(by_bytes).max(2);
         let priorities = cfg.prioritized.then(|| SumTree::new(cfg.capacity));
         let rng = ChaCha8Rng::seed_from_u64(cfg.seed);
         Self {
             frames: vec![0; frame_slots * cfg.frame_bytes],
-            frame_scalars: vec![[0.0; 2 + PATH_FEATURES]; frame_slots],
+            frame_scalars: vec![RawScalars::default(); frame_slots],
             frame_slots,
             first_frame: 0,
             next_frame: 0,
@@ -167,7 +172,7 @@ impl Replay {
     /// Bytes in use (frames held and transitions).
     #[must_use]
     pub fn bytes(&self) -> u64 {
-        let frames = (self.next_frame - self.first_frame) * (self.cfg.frame_bytes as u64 + 8);
+        let frames = (self.next_frame - self.first_frame) * frame_cost(self.cfg.frame_bytes);
         frames + self.transitions.len() as u64 * TRANSITION_BYTES
     }
 
@@ -399,7 +404,7 @@ mod tests {
                     image: &[],
                     speed: t as f32,
                     d: 0.0,
-                    path: [0.0; 3],
+                    path: [0.0; PATH_FEATURES],
                     action: t % 3,
                     reward: t as f32,
                     terminated: terminal && t == len,
@@ -475,7 +480,7 @@ mod tests {
                 image: &img,
                 speed: 0.0,
                 d: 0.0,
-                path: [0.0; 3],
+                path: [0.0; PATH_FEATURES],
                 action: 0,
                 reward: 0.0,
                 terminated: false,
