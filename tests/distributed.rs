@@ -6,26 +6,18 @@ use std::path::Path;
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
-use learner::config::RunConfig;
+use agent::config::RunConfig;
 use learner::serve::{Running, ServeOptions, start};
 use proto::v1 as pb;
-use sim_core::camera::CameraConfig;
 
 /// A run small enough to train in seconds: 16×16 gray camera, a tiny network.
 fn config(run_dir: &Path, listen: &str) -> RunConfig {
-    let mut cfg = RunConfig::default();
-    cfg.env.camera = Some(CameraConfig { width: 16, height: 16, ..CameraConfig::default() });
+    let mut cfg = RunConfig::tiny(run_dir);
     cfg.env.traffic.vehicles = 5;
-    cfg.agent.conv_filters = 2;
-    cfg.agent.hidden = 8;
-    cfg.agent.batch_size = 8;
     cfg.agent.min_replay = 64;
     cfg.agent.replay_capacity = 5000;
     cfg.agent.replay_ratio = 0.5;
-    cfg.agent.publish_every_updates = 2;
     cfg.service.listen = listen.into();
-    cfg.service.run_dir = run_dir.display().to_string();
-    cfg.service.checkpoint_interval_secs = 3600;
     cfg.service.actor_timeout_secs = 2;
     cfg
 }
@@ -48,7 +40,7 @@ fn spawn_actor(addr: &str, name: &str, log: &Path) -> Child {
 }
 
 async fn status(addr: &str) -> pb::StatusResponse {
-    let mut c = learner::status::connect(addr, None).await.unwrap();
+    let mut c = proto::client::connect(addr, None).await.unwrap();
     c.status(pb::StatusRequest {}).await.unwrap().into_inner()
 }
 
@@ -91,7 +83,7 @@ async fn actors_train_survive_each_other_and_a_learner_restart() {
     assert_eq!(s.transitions_rejected, 0);
 
     // A malformed batch from a third party is refused and disturbs no one.
-    let mut bad = learner::status::connect(&addr, None).await.unwrap();
+    let mut bad = proto::client::connect(&addr, None).await.unwrap();
     let reg = bad.register(pb::RegisterRequest { name: "bad".into(), envs: 1, protocol: 1 }).await.unwrap().into_inner();
     let step = pb::Step { obs: Some(pb::Observation { image: vec![0; 3], speed: 0.0, d: 0.0, path: Vec::new() }), ..pb::Step::default() };
     let batch = pb::ExperienceBatch { actor_id: reg.actor_id, seq: 1, steps: vec![step], ..pb::ExperienceBatch::default() };

@@ -10,7 +10,7 @@ use sim_core::env::Env;
 use sim_core::expert::Expert;
 use sim_core::scenario::Scenario;
 
-use crate::drive::load_town;
+use crate::routes::load_town;
 
 #[derive(Debug, Subcommand)]
 pub enum BenchCommand {

@@ -2,20 +2,17 @@
 //! pieces `actor eval` shares: route selection ([`parse_routes`]), the town ([`load_town`]) and
 //! the tally of an episode ([`Episode`]).
 
-use std::sync::Arc;
-
 use anyhow::{Context, Result};
 use clap::Args;
 use serde::Serialize;
 use sim_core::camera::{BirdsEye, BirdsEyeConfig, CameraConfig};
-use sim_core::collision::CollisionKind;
 use sim_core::config::EnvConfig;
-use sim_core::env::{Env, StepResult};
-use sim_core::scenario::{EvalRoute, Scenario};
-use sim_core::town::Town;
+use sim_core::env::Env;
 
+use crate::episode::Episode;
 use crate::policy::Policy;
 use crate::record::RunRecorder;
+use crate::routes::{load_town, parse_routes};
 
 #[derive(Debug, Args)]
 pub struct DriveArgs {
@@ -76,74 +73,6 @@ struct RouteReport {
     kinds: Vec<&'static str>,
 }
 
-/// What one driven episode came to.
-#[derive(Debug, Clone, Default, PartialEq)]
-pub struct Episode {
-    /// Cumulative reward (the paper's metric).
-    pub ret: f64,
-    pub steps: u32,
-    pub arrived: bool,
-    pub collision: Option<CollisionKind>,
-    /// Sums over steps of d (m) and speed (m/s), for the means.
-    sum_d: f64,
-    sum_speed: f64,
-    pub done: bool,
-}
-
-impl Episode {
-    /// Adds a step's result; returns whether the episode is over.
-    pub fn record(&mut self, r: &StepResult) -> bool {
-        self.ret += f64::from(r.reward);
-        self.steps = r.info.steps;
-        self.sum_d += f64::from(r.info.d);
-        self.sum_speed += f64::from(r.info.speed);
-        self.done = r.terminated || r.truncated;
-        if self.done {
-            self.arrived = r.info.arrived;
-            self.collision = r.info.collision;
-        }
-        self.done
-    }
-
-    /// Mean distance to the closest waypoint over the episode's steps, metres.
-    #[must_use]
-    pub fn mean_d(&self) -> f64 {
-        self.sum_d / f64::from(self.steps.max(1))
-    }
-
-    /// Mean speed over the episode's steps, m/s.
-    #[must_use]
-    pub fn mean_speed(&self) -> f64 {
-        self.sum_speed / f64::from(self.steps.max(1))
-    }
-}
-
-/// The routes named on the command line: a route name, `all` seven, or `random` (random training
-/// routes, for any map).
-pub fn parse_routes(arg: &str) -> Result<Vec<(&'static str, Scenario)>> {
-    Ok(match arg {
-        "all" => EvalRoute::ALL.iter().map(|&r| (r.name(), Scenario::Eval(r))).collect(),
-        "random" => vec![("random", Scenario::Random)],
-        name => {
-            let r = EvalRoute::from_name(name).with_context(|| {
-                format!("unknown route `{name}`: expected `all`, `random` or one of {}", EvalRoute::ALL.map(EvalRoute::name).join(", "))
-            })?;
-            vec![(r.name(), Scenario::Eval(r))]
-        }
-    })
-}
-
-/// Loads the town: the embedded default or a map file.
-pub fn load_town(map: Option<&std::path::Path>) -> Result<Arc<Town>> {
-    match map {
-        None => Ok(Town::default_town()),
-        Some(path) => {
-            let text = std::fs::read_to_string(path).with_context(|| format!("reading map file {}", path.display()))?;
-            Town::from_map_text(&text).with_context(|| format!("loading map file {}", path.display()))
-        }
-    }
-}
-
 pub fn run(args: &DriveArgs) -> Result<()> {
     let scenarios = parse_routes(&args.route)?;
     if args.runs == 0 {
@@ -160,7 +89,7 @@ pub fn run(args: &DriveArgs) -> Result<()> {
     let mut checkpoint = match args.policy.as_str() {
         "expert" | "random" => None,
         path => {
-            let agent = crate::eval::load_checkpoint(std::path::Path::new(path))
+            let agent = crate::greedy::load_checkpoint(std::path::Path::new(path))
                 .with_context(|| format!("--policy `{path}` is neither `expert`, `random` nor a checkpoint"))?;
             cfg.camera.clone_from(&agent.cfg.env.camera);
             Some(agent)
@@ -188,7 +117,7 @@ pub fn run(args: &DriveArgs) -> Result<()> {
                 }
                 let action = match (&mut policy, &mut checkpoint) {
                     (Some(p), _) => p.act(&env),
-                    (None, Some(agent)) => crate::eval::greedy_action(agent, &env),
+                    (None, Some(agent)) => crate::greedy::greedy_action(agent, &env),
                     (None, None) => unreachable!("a named policy or a checkpoint"),
                 };
                 let r = env.step(action)?;

@@ -4,10 +4,15 @@
 
 mod bench;
 mod drive;
+mod episode;
 mod eval;
+mod greedy;
 mod policy;
 mod record;
+mod routes;
 mod run;
+#[cfg(test)]
+mod testing;
 mod train;
 
 use anyhow::Result;

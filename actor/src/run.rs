@@ -12,10 +12,10 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
+use agent::config::{AgentConfig, RunConfig};
+use agent::fastnet::Inference;
 use anyhow::{Context, Result};
-use learner::config::{AgentConfig, RunConfig};
-use learner::fastnet::Inference;
-use learner::status::{Client, connect};
+use proto::client::{Client, connect};
 use proto::v1 as pb;
 use rand::{Rng, RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -76,7 +76,7 @@ async fn register(
         let attempt = async {
             let mut client = connect(&opts.learner, token.clone()).await?;
             let reg = client
-                .register(pb::RegisterRequest { name: opts.name.clone(), envs: envs as u32, protocol: learner::service::PROTOCOL })
+                .register(pb::RegisterRequest { name: opts.name.clone(), envs: envs as u32, protocol: proto::v1::PROTOCOL })
                 .await
                 .map_err(|s| anyhow::anyhow!("register: {}", s.message()))?
                 .into_inner();
@@ -106,7 +106,7 @@ pub async fn run(opts: ActorOptions) -> Result<()> {
     if opts.envs == 0 || opts.envs > 1024 {
         anyhow::bail!("--envs {} must be 1..=1024", opts.envs);
     }
-    let token = opts.auth_token_file.as_deref().map(learner::serve::read_token).transpose()?;
+    let token = opts.auth_token_file.as_deref().map(proto::client::read_token).transpose()?;
     let link = Arc::new(Link {
         outbox: Mutex::new(Outbox::default()),
         fresh_weights: Mutex::new(None),
@@ -118,7 +118,7 @@ pub async fn run(opts: ActorOptions) -> Result<()> {
     {
         let link = link.clone();
         tokio::spawn(async move {
-            learner::serve::shutdown_signal().await;
+            proto::shutdown::signal().await;
             tracing::info!("stopping: flushing buffered steps");
             link.stop.store(true, Ordering::SeqCst);
         });
@@ -305,10 +305,10 @@ async fn progress_loop(link: Arc<Link>) {
 fn step_loop(cfg: &RunConfig, link: &Link, n: usize, seed: u64, index: u32, batch_steps: usize, buffer_steps: usize) -> Result<()> {
     let town = Town::default_town();
     anyhow::ensure!(cfg.env.camera.is_some(), "the run has no camera configured");
-    let shape = learner::serve::net_shape(cfg);
+    let shape = cfg.net_shape();
     // One thread: an actor's batch is a few frames, and actors share the cores with each other
     // and the learner.
-    let mut net = Inference::new(shape, cfg.agent.seed, 1)?;
+    let mut net = Inference::new(shape, cfg.agent.seed, 1);
     let actions = cfg.agent.action_set.actions();
     let mut rng = ChaCha8Rng::seed_from_u64(seed ^ (u64::from(index) << 32));
     let mut envs: Vec<Env> = (0..n).map(|_| Env::new(town.clone(), cfg.env.clone())).collect::<Result<_, _>>()?;
@@ -340,7 +340,7 @@ fn step_loop(cfg: &RunConfig, link: &Link, n: usize, seed: u64, index: u32, batc
             }
         }
         // One batched forward pass for all environments.
-        let scalars: Vec<f32> = envs.iter().flat_map(|e| learner::train::scalar_features(cfg, &learner::train::env_scalars(e))).collect();
+        let scalars: Vec<f32> = envs.iter().flat_map(|e| agent::features::scalar_features(cfg, &agent::features::env_scalars(e))).collect();
         let greedy = net.greedy(envs.iter().map(|e| e.image().data.as_slice()), &scalars);
         let epsilon = cfg.epsilon(index, total_steps);
         for (k, env) in envs.iter_mut().enumerate() {

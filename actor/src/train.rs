@@ -8,10 +8,10 @@ use std::path::PathBuf;
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
+use agent::config::RunConfig;
 use anyhow::{Context, Result};
 use clap::Args;
-use learner::config::RunConfig;
-use learner::serve::{ServeOptions, shutdown_signal, start};
+use learner::serve::{ServeOptions, start};
 
 #[derive(Debug, Args)]
 pub struct TrainArgs {
@@ -143,7 +143,7 @@ pub async fn run(args: &TrainArgs) -> Result<()> {
         }
     };
     tokio::select! {
-        () = shutdown_signal() => {}
+        () = proto::shutdown::signal() => {}
         () = budget_spent => eprintln!("time budget of {:.1} min spent", args.max_minutes.unwrap_or_default()),
     }
     progress.abort();

@@ -6,14 +6,14 @@
 
 use std::hint::black_box;
 
+use agent::NetShape;
+use agent::config::AgentConfig;
+use agent::fastnet::conv::{self, ConvGeom};
+use agent::fastnet::gemm::{View, matmul};
+use agent::fastnet::pool::{self, Strided};
+use agent::fastnet::{FastNet, Params, default_threads};
 use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
-use learner::config::AgentConfig;
 use learner::dqn::{Batch, Dqn};
-use learner::fastnet::conv::{self, ConvGeom};
-use learner::fastnet::gemm::{View, matmul};
-use learner::fastnet::pool::{self, Strided};
-use learner::fastnet::{FastNet, Params, default_threads};
-use learner::net::NetShape;
 
 fn noise(n: usize, seed: u32) -> Vec<f32> {
     (0..n as u32).map(|i| ((i.wrapping_mul(2_654_435_761) ^ seed) % 1000) as f32 / 500.0 - 1.0).collect()
@@ -108,12 +108,12 @@ fn network(c: &mut Criterion) {
     let mut group = c.benchmark_group("network");
     group.sample_size(10);
     let shape = NetShape { height: 84, width: 84, channels: 3, scalars: 2, actions: 6, filters: 64, hidden: 256 };
-    let params = Params::init(shape, 1).expect("init");
+    let params = Params::init(shape, 1);
     let frame = 84 * 84 * 3;
     let image: Vec<u8> = (0..frame).map(|i| (i % 251) as u8).collect();
     let mut net = FastNet::new(shape, default_threads());
     group.bench_function("forward_batch1_84x84x3", |b| b.iter(|| black_box(net.forward(&params, &image, &[0.5, 0.1]).len())));
-    let mut dqn = Dqn::new(shape, &AgentConfig::default()).expect("init");
+    let mut dqn = Dqn::new(shape, &AgentConfig::default());
     let n = 32;
     let images: Vec<u8> = (0..n * frame).map(|i| (i % 253) as u8).collect();
     let batch = Batch {

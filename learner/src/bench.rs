@@ -3,16 +3,15 @@
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result, bail};
-use candle_core::{D, Device, Tensor};
 use proto::v1 as pb;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-use crate::config::{AgentConfig, RunConfig};
 use crate::dqn::{Batch, Dqn};
-use crate::fastnet::{FastNet, Params};
-use crate::net::{NetShape, images_tensor, network};
 use crate::serve::{ServeOptions, start};
+use agent::NetShape;
+use agent::config::{AgentConfig, RunConfig};
+use agent::fastnet::{FastNet, Params};
 
 /// Parses `WxHxC`, e.g. `84x84x3`.
 pub fn parse_input(s: &str) -> Result<(usize, usize, usize), String> {
@@ -75,7 +74,7 @@ pub fn train(input: (usize, usize, usize), batch: usize, updates: usize, threads
     let agent = AgentConfig::default();
     let shape = NetShape { height: h, width: w, channels: c, scalars: 2, actions: 6, filters: agent.conv_filters, hidden: agent.hidden };
     let load_before = load_average();
-    let mut dqn = Dqn::with_threads(shape, &agent, threads)?;
+    let mut dqn = Dqn::with_threads(shape, &agent, threads);
     let b = random_batch(&shape, batch);
     let ms = median_ms(updates, || {
         dqn.update(&b);
@@ -103,11 +102,7 @@ pub fn train(input: (usize, usize, usize), batch: usize, updates: usize, threads
         "load_after": load_average(),
     });
     if reference {
-        let candle_ms = median_ms(updates.min(3), || {
-            if let Err(e) = candle_step(&shape, &dqn.online, &b) {
-                tracing::error!("candle reference step: {e}");
-            }
-        });
+        let candle_ms = candle_ms_per_update(&shape, &dqn.online, &b, updates.min(3))?;
         tracing::info!(candle_ms_per_update = candle_ms, "candle reference timed");
         out["candle_ms_per_update"] = serde_json::json!(candle_ms);
         out["speedup_over_candle"] = serde_json::json!(candle_ms / ms);
@@ -116,12 +111,31 @@ pub fn train(input: (usize, usize, usize), batch: usize, updates: usize, threads
     Ok(out)
 }
 
+/// The median time of [`candle_step`] over `runs` runs, ms.
+#[cfg(feature = "reference")]
+fn candle_ms_per_update(shape: &NetShape, params: &Params, b: &Batch, runs: usize) -> Result<f64> {
+    candle_step(shape, params, b)?;
+    Ok(median_ms(runs, || {
+        if let Err(e) = candle_step(shape, params, b) {
+            tracing::error!("candle reference step: {e}");
+        }
+    }))
+}
+
+#[cfg(not(feature = "reference"))]
+fn candle_ms_per_update(_: &NetShape, _: &Params, _: &Batch, _: usize) -> Result<f64> {
+    bail!("--reference needs the learner built with its `reference` feature (candle)")
+}
+
 /// candle's own forward and backward passes of one update (target forward on the next states,
 /// online forward, a clipped squared loss, backward): the "before" of the fast implementation. The optimizer
 /// step is left out, which only flatters candle.
+#[cfg(feature = "reference")]
 fn candle_step(shape: &NetShape, params: &Params, b: &Batch) -> candle_core::Result<()> {
+    use agent::reference::{images_tensor, network, var_map};
+    use candle_core::{D, Device, Tensor};
     let dev = Device::Cpu;
-    let vars = params.to_var_map()?;
+    let vars = var_map(params)?;
     let net = network(&vars, *shape, &dev)?;
     let n = b.len();
     let frame = shape.height * shape.width * shape.channels;
@@ -152,9 +166,8 @@ pub async fn ingest(seconds: f64) -> Result<serde_json::Value> {
     let cfg_path = dir.with_extension("toml");
     std::fs::write(&cfg_path, cfg.to_toml())?;
     let running = start(ServeOptions { config: Some(cfg_path.clone()), ..ServeOptions::default() }).await?;
-    let mut client = crate::status::connect(&running.addr.to_string(), None).await?;
-    let reg =
-        client.register(pb::RegisterRequest { name: "bench".into(), envs: 1, protocol: crate::service::PROTOCOL }).await?.into_inner();
+    let mut client = proto::client::connect(&running.addr.to_string(), None).await?;
+    let reg = client.register(pb::RegisterRequest { name: "bench".into(), envs: 1, protocol: proto::v1::PROTOCOL }).await?.into_inner();
     let frame = vec![100u8; 84 * 84];
     let actor_id = reg.actor_id.clone();
     let (mut episode, mut t) = (0u64, 0u32);

@@ -2,9 +2,9 @@
 //! Adam, gradient clipping by global norm, optional double-DQN targets and importance weights.
 //! The networks run on the fast CPU implementation ([`crate::fastnet`]).
 
-use crate::config::AgentConfig;
-use crate::fastnet::{Adam, FastNet, Params, argmax, default_threads};
-use crate::net::NetShape;
+use agent::NetShape;
+use agent::config::AgentConfig;
+use agent::fastnet::{Adam, FastNet, Params, argmax, default_threads};
 
 /// A batch of transitions ready for an update.
 #[derive(Debug, Clone, Default)]
@@ -70,14 +70,16 @@ pub struct Dqn {
 impl Dqn {
     /// A fresh agent on every core: both networks initialised from `cfg.seed` (identical), Adam
     /// at zero.
-    pub fn new(shape: NetShape, cfg: &AgentConfig) -> candle_core::Result<Self> {
+    #[must_use]
+    pub fn new(shape: NetShape, cfg: &AgentConfig) -> Self {
         Self::with_threads(shape, cfg, default_threads())
     }
 
     /// As [`Dqn::new`], computing on `threads` threads.
-    pub fn with_threads(shape: NetShape, cfg: &AgentConfig, threads: usize) -> candle_core::Result<Self> {
-        let online = Params::init(shape, cfg.seed)?;
-        Ok(Self {
+    #[must_use]
+    pub fn with_threads(shape: NetShape, cfg: &AgentConfig, threads: usize) -> Self {
+        let online = Params::init(shape, cfg.seed);
+        Self {
             shape,
             target: online.clone(),
             online,
@@ -89,7 +91,7 @@ impl Dqn {
             double_dqn: cfg.double_dqn,
             updates: 0,
             target_update_period: cfg.target_update_period,
-        })
+        }
     }
 
     /// Q values of the online network, `batch × actions` row-major.
@@ -181,7 +183,7 @@ mod tests {
 
     #[test]
     fn targets_match_hand_computation() {
-        let mut dqn = Dqn::new(shape(), &AgentConfig::default()).unwrap();
+        let mut dqn = Dqn::new(shape(), &AgentConfig::default());
         let b = batch(&[1.0, -1.0, 0.5], &[0.99, 0.0, 0.5]);
         let q_next = FastNet::new(shape(), 1).forward(&dqn.target, &b.next_images, &b.next_scalars).to_vec();
         let y = dqn.targets(&b);
@@ -196,7 +198,7 @@ mod tests {
     #[test]
     fn an_update_moves_q_toward_the_target_and_syncs_the_target_on_schedule() {
         let cfg = AgentConfig { learning_rate: 1e-2, target_update_period: 5, ..AgentConfig::default() };
-        let mut dqn = Dqn::new(shape(), &cfg).unwrap();
+        let mut dqn = Dqn::new(shape(), &cfg);
         let b = batch(&[1.0, 1.0, 1.0, 1.0], &[0.0; 4]);
         let first = dqn.update(&b).loss;
         let target_before = dqn.target.clone();
@@ -218,7 +220,7 @@ mod tests {
         let mut cfg = AgentConfig { huber_delta: 1.0, ..AgentConfig::default() };
         cfg.grad_clip_norm = 1e9;
         let norm_for = |reward_shift: f32| {
-            let mut dqn = Dqn::new(shape(), &cfg).unwrap();
+            let mut dqn = Dqn::new(shape(), &cfg);
             let mut b = batch(&[0.0], &[0.0]);
             let q = dqn.q_values(&b.images, &b.scalars);
             b.rewards[0] = q[0] + reward_shift;

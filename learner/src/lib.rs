@@ -1,15 +1,15 @@
-//! The learner: replay buffer, DQN training on the fast CPU network (`fastnet`), checkpoints,
-//! weight broadcast, status and metrics. The Q-network's definition (`net`) and its fast
-//! implementation (`fastnet`) are shared with the actor, which links this library for inference.
+//! The learner: the training service. It holds the replay buffer, trains the DQN (on the agent's
+//! `fastnet`), writes checkpoints, publishes weights to actors and reports status and metrics.
+//! What the agent is (network, weights files, configuration, inputs) lives in the `agent` crate.
 
 pub mod bench;
 pub mod checkpoint;
-pub mod config;
 pub mod dqn;
-pub mod fastnet;
-pub mod metrics;
-pub mod net;
+pub mod metrics_log;
+#[cfg(feature = "plot")]
 pub mod plot;
+pub mod prometheus;
+pub mod records;
 pub mod replay;
 pub mod serve;
 pub mod service;

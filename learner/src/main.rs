@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use anyhow::Result;
 use clap::{Parser, Subcommand};
-use learner::serve::{ServeOptions, read_token, serve};
+use learner::serve::{ServeOptions, serve};
 use learner::status;
 
 mod health;
@@ -178,8 +178,8 @@ fn main() -> Result<()> {
                 serve(ServeOptions { config, listen, run_dir, resume, metrics_listen, auth_token_file }).await
             }
             Command::Status { addr, json, auth_token_file } => {
-                let token = auth_token_file.as_deref().map(read_token).transpose()?;
-                let mut client = status::connect(&addr, token).await?;
+                let token = auth_token_file.as_deref().map(proto::client::read_token).transpose()?;
+                let mut client = proto::client::connect(&addr, token).await?;
                 let s = client
                     .status(proto::v1::StatusRequest {})
                     .await
@@ -202,9 +202,9 @@ fn main() -> Result<()> {
             }
             Command::Config { config, preset } => {
                 let cfg = match (config, preset) {
-                    (Some(p), _) => learner::config::RunConfig::load(&p)?,
-                    (None, Some(name)) => learner::config::RunConfig::preset(&name).map_err(|e| anyhow::anyhow!("--preset: {e}"))?,
-                    (None, None) => learner::config::RunConfig::default(),
+                    (Some(p), _) => agent::config::RunConfig::load(&p)?,
+                    (None, Some(name)) => agent::config::RunConfig::preset(&name).map_err(|e| anyhow::anyhow!("--preset: {e}"))?,
+                    (None, None) => agent::config::RunConfig::default(),
                 };
                 print!("{}", cfg.to_toml());
                 Ok(())
@@ -225,7 +225,7 @@ fn main() -> Result<()> {
                 if batch == 0 || updates == 0 || threads == Some(0) {
                     anyhow::bail!("--batch, --updates and --threads must be at least 1");
                 }
-                let threads = threads.unwrap_or_else(learner::fastnet::default_threads);
+                let threads = threads.unwrap_or_else(agent::fastnet::default_threads);
                 let v = tokio::task::spawn_blocking(move || learner::bench::train(input, batch, updates, threads, reference)).await??;
                 print_result(&v, json);
                 Ok(())

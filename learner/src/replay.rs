@@ -6,6 +6,7 @@
 
 use std::collections::{HashMap, VecDeque};
 
+use agent::features::{RawScalars, raw_scalars};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use sim_core::env::PATH_FEATURES;
@@ -27,11 +28,6 @@ pub struct ReplayConfig {
     pub seed: u64,
 }
 
-/// What is stored with each frame besides the image: speed (m/s), d (m) and the planner's path
-/// features (sim-core's `Env::path_features`). The run's config picks which of them the network
-/// sees (`train::scalar_features`), so one buffer layout serves every variant.
-pub type RawScalars = [f32; 2 + PATH_FEATURES];
-
 /// One environment step as it arrives from an actor (the domain form of the wire `Step`).
 #[derive(Debug, Clone, PartialEq)]
 pub struct StepRecord<'a> {
@@ -47,13 +43,6 @@ pub struct StepRecord<'a> {
     pub reward: f32,
     pub terminated: bool,
     pub truncated: bool,
-}
-
-/// Packs one observation's scalars.
-#[must_use]
-pub fn raw_scalars(speed: f32, d: f32, path: [f32; PATH_FEATURES]) -> RawScalars {
-    let [lateral, near, far] = path;
-    [speed, d, lateral, near, far]
 }
 
 /// A transition between two stored frames.

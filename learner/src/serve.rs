@@ -13,18 +13,15 @@ use anyhow::{Context, Result, bail};
 use proto::v1::learner_server::LearnerServer;
 use tonic::codec::CompressionEncoding;
 
-use crate::checkpoint::{self, Counters};
-use crate::config::RunConfig;
+use crate::checkpoint;
 use crate::dqn::Dqn;
-use crate::metrics::{MetricsLog, serve_prometheus};
-use crate::net::NetShape;
+use crate::metrics_log::MetricsLog;
+use crate::prometheus::serve_prometheus;
 use crate::replay::{Replay, ReplayConfig};
 use crate::service::LearnerService;
 use crate::state::{PublishedWeights, Shared, TrainStats};
-
-/// HTTP/2 flow-control windows, bytes (server and clients).
-pub const STREAM_WINDOW: u32 = 8 << 20;
-pub const CONNECTION_WINDOW: u32 = 16 << 20;
+use agent::checkpoint::Counters;
+use agent::config::RunConfig;
 
 /// Options of `learner serve`.
 #[derive(Debug, Clone, Default)]
@@ -37,21 +34,6 @@ pub struct ServeOptions {
     pub auth_token_file: Option<PathBuf>,
 }
 
-/// The network shape a configuration implies.
-#[must_use]
-pub fn net_shape(cfg: &RunConfig) -> NetShape {
-    let cam = cfg.env.camera.as_ref().expect("validated: a camera is configured");
-    NetShape {
-        height: cam.height as usize,
-        width: cam.width as usize,
-        channels: usize::from(cam.channels()),
-        scalars: cfg.scalar_inputs(),
-        actions: cfg.agent.action_set.actions().len(),
-        filters: cfg.agent.conv_filters,
-        hidden: cfg.agent.hidden,
-    }
-}
-
 /// Resolves `host:port` or `http://host:port` to a socket address.
 pub async fn resolve(addr: &str) -> Result<SocketAddr> {
     let bare = addr.trim_start_matches("http://").trim_start_matches("https://").trim_end_matches('/');
@@ -62,21 +44,11 @@ pub async fn resolve(addr: &str) -> Result<SocketAddr> {
         .with_context(|| format!("address `{addr}` resolved to nothing"))
 }
 
-/// Reads a token file: its first line, trimmed; empty files are refused.
-pub fn read_token(path: &Path) -> Result<String> {
-    let text = std::fs::read_to_string(path).with_context(|| format!("reading auth token file {}", path.display()))?;
-    let token = text.lines().next().unwrap_or("").trim().to_owned();
-    if token.is_empty() {
-        bail!("auth token file {} is empty", path.display());
-    }
-    Ok(token)
-}
-
 /// Runs the service until SIGINT or SIGTERM, then stops it cleanly.
 pub async fn serve(opts: ServeOptions) -> Result<()> {
     let running = start(opts).await?;
     eprintln!("learner listening on {} (run {} in {})", running.addr, running.shared.run_id, running.run_dir.display());
-    shutdown_signal().await;
+    proto::shutdown::signal().await;
     tracing::info!("stopping: finishing the current update and writing a checkpoint");
     let run_dir = running.run_dir.clone();
     let path = running.stop().await?;
@@ -116,7 +88,7 @@ impl Running {
         let dqn =
             tokio::task::spawn_blocking(move || trainer.join()).await?.map_err(|_| anyhow::anyhow!("the training thread panicked"))??;
         let path = crate::train::save_checkpoint(&self.shared, &dqn, &self.run_dir)?;
-        self.shared.metrics.interval(&self.shared)?;
+        self.shared.metrics.interval(&self.shared.train_record())?;
         Ok(path)
     }
 }
@@ -151,10 +123,10 @@ pub async fn start(opts: ServeOptions) -> Result<Running> {
         cfg.service.listen = l.clone();
     }
     cfg.validate().map_err(|(field, message)| anyhow::anyhow!("config field `{field}`: {message}"))?;
-    let token = opts.auth_token_file.as_deref().map(read_token).transpose()?;
+    let token = opts.auth_token_file.as_deref().map(proto::client::read_token).transpose()?;
 
-    let shape = net_shape(&cfg);
-    let mut dqn = Dqn::new(shape, &cfg.agent)?;
+    let shape = cfg.net_shape();
+    let mut dqn = Dqn::new(shape, &cfg.agent);
     let mut counters = Counters::default();
     if opts.resume {
         let loaded = checkpoint::load(&run_dir, &mut dqn).with_context(|| format!("loading the checkpoint in {}", run_dir.display()))?;
@@ -178,7 +150,8 @@ pub async fn start(opts: ServeOptions) -> Result<Running> {
         beta: a.priority_beta,
         seed: a.seed ^ counters.learner_step,
     });
-    let weights = PublishedWeights { version: counters.weights_version.max(1), bytes: Arc::new(dqn.online.to_safetensors("")?) };
+    let weights =
+        PublishedWeights { version: counters.weights_version.max(1), bytes: Arc::new(agent::weights::to_safetensors(&dqn.online, "")?) };
     counters.weights_version = weights.version;
     let elapsed_before = counters.elapsed_secs;
     let shared = Arc::new(Shared {
@@ -231,37 +204,37 @@ pub async fn start(opts: ServeOptions) -> Result<Running> {
     let svc = tonic::service::interceptor::InterceptedService::new(server, auth_interceptor(token));
     let (health_reporter, health) = tonic_health::server::health_reporter();
     health_reporter.set_serving::<LearnerServer<LearnerService>>().await;
-    let reflection = tonic_reflection::server::Builder::configure()
-        .register_encoded_file_descriptor_set(proto::v1::FILE_DESCRIPTOR_SET)
-        .register_encoded_file_descriptor_set(tonic_health::pb::FILE_DESCRIPTOR_SET)
-        .build_v1()?;
     tracing::info!(addr = %bound, run_dir = %run_dir.display(), run_id = %shared.run_id, "learner listening");
     let incoming = tokio_stream::wrappers::TcpListenerStream::new(listener);
     let (stop_server, stopped) = tokio::sync::oneshot::channel::<()>();
     // Batches of frames are large: HTTP/2's default 64 KiB flow-control window would stall each
     // one on window updates.
-    let server = tokio::spawn(
-        tonic::transport::Server::builder()
-            .initial_stream_window_size(Some(STREAM_WINDOW))
-            .initial_connection_window_size(Some(CONNECTION_WINDOW))
-            // Streams of actors that vanished without closing (a cut network) end within ~30 s.
-            .http2_keepalive_interval(Some(std::time::Duration::from_secs(10)))
-            .http2_keepalive_timeout(Some(std::time::Duration::from_secs(20)))
-            .add_service(health)
-            .add_service(reflection)
-            .add_service(svc)
-            .serve_with_incoming_shutdown(incoming, async move {
-                let _ = stopped.await;
-            }),
+    let router = tonic::transport::Server::builder()
+        .initial_stream_window_size(Some(proto::client::STREAM_WINDOW))
+        .initial_connection_window_size(Some(proto::client::CONNECTION_WINDOW))
+        // Streams of actors that vanished without closing (a cut network) end within ~30 s.
+        .http2_keepalive_interval(Some(std::time::Duration::from_secs(10)))
+        .http2_keepalive_timeout(Some(std::time::Duration::from_secs(20)))
+        .add_service(health)
+        .add_service(svc);
+    #[cfg(feature = "reflection")]
+    let router = router.add_service(
+        tonic_reflection::server::Builder::configure()
+            .register_encoded_file_descriptor_set(proto::v1::FILE_DESCRIPTOR_SET)
+            .register_encoded_file_descriptor_set(tonic_health::pb::FILE_DESCRIPTOR_SET)
+            .build_v1()?,
     );
+    let server = tokio::spawn(router.serve_with_incoming_shutdown(incoming, async move {
+        let _ = stopped.await;
+    }));
     Ok(Running { addr: bound, run_dir, shared, stop_server, server, trainer })
 }
 
 /// The configuration saved with the checkpoint of `run_dir` (verified again, with everything else,
 /// when the checkpoint is loaded).
 fn checkpoint_config_text(run_dir: &Path) -> Result<String> {
-    for dir in ["checkpoint", "checkpoint.old"] {
-        let p = run_dir.join(dir).join("config.toml");
+    for dir in [agent::checkpoint::DIR, agent::checkpoint::OLD_DIR] {
+        let p = run_dir.join(dir).join(agent::checkpoint::CONFIG);
         if p.exists() {
             return std::fs::read_to_string(&p).with_context(|| format!("reading {}", p.display()));
         }
@@ -289,23 +262,6 @@ fn auth_interceptor(token: Option<String>) -> impl Fn(tonic::Request<()>) -> Res
     }
 }
 
-/// Resolves on SIGINT (Ctrl-C) or SIGTERM.
-pub async fn shutdown_signal() {
-    let ctrl_c = tokio::signal::ctrl_c();
-    #[cfg(unix)]
-    {
-        let mut term = tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate()).expect("installing the SIGTERM handler");
-        tokio::select! {
-            _ = ctrl_c => {}
-            _ = term.recv() => {}
-        }
-    }
-    #[cfg(not(unix))]
-    {
-        let _ = ctrl_c.await;
-    }
-}
-
 /// Every second: rates; every 10 s: a train.jsonl line and a progress log line.
 async fn report_loop(shared: Arc<Shared>) {
     let mut last = (Instant::now(), 0u64, 0u64);
@@ -329,7 +285,7 @@ async fn report_loop(shared: Arc<Shared>) {
         last = (Instant::now(), updates, steps);
         tick += 1;
         if tick.is_multiple_of(10) {
-            if let Err(err) = shared.metrics.interval(&shared) {
+            if let Err(err) = shared.metrics.interval(&shared.train_record()) {
                 tracing::warn!(%err, "writing train.jsonl");
             }
             let st = crate::service::status(&shared);

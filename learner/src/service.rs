@@ -11,15 +11,13 @@ use proto::v1::learner_server::Learner;
 use tokio_stream::{Stream, StreamExt};
 use tonic::{Request, Response, Status, Streaming};
 
-use crate::metrics::EpisodeLine;
+use crate::records::EpisodeRecord;
 use crate::replay::StepRecord;
 use crate::state::{ActorRecord, EpisodeOutcome, Shared};
 use sim_core::env::PATH_FEATURES;
 
 /// Most steps one batch may carry.
 pub const MAX_STEPS_PER_BATCH: usize = 4096;
-/// Protocol version this learner speaks.
-pub const PROTOCOL: u32 = 1;
 
 /// The service.
 #[derive(Debug, Clone)]
@@ -33,10 +31,11 @@ type AckStream = Pin<Box<dyn Stream<Item = Result<pb::BatchAck, Status>> + Send>
 impl Learner for LearnerService {
     async fn register(&self, req: Request<pb::RegisterRequest>) -> Result<Response<pb::RegisterResponse>, Status> {
         let r = req.into_inner();
-        if r.protocol != PROTOCOL {
+        if r.protocol != pb::PROTOCOL {
             return Err(Status::failed_precondition(format!(
-                "protocol {} is not supported: this learner speaks protocol {PROTOCOL}",
-                r.protocol
+                "protocol {} is not supported: this learner speaks protocol {}",
+                r.protocol,
+                pb::PROTOCOL
             )));
         }
         if r.envs == 0 || r.envs > 4096 {
@@ -257,16 +256,16 @@ fn ingest(shared: &Shared, b: &pb::ExperienceBatch) -> Result<pb::BatchAck, Stat
     });
     let time_secs = shared.run_secs();
     for (k, e) in b.episodes.iter().enumerate() {
-        let line = EpisodeLine {
+        let line = EpisodeRecord {
             time_secs,
             episode_index: first_episode + k as u64 + 1,
-            actor_id: &b.actor_id,
+            actor_id: b.actor_id.clone(),
             env: e.env,
             episode_return: f64::from(e.episode_return),
             steps: e.steps,
             arrived: e.arrived,
-            collision: (!e.collision.is_empty()).then_some(e.collision.as_str()),
-            scenario: &e.scenario,
+            collision: (!e.collision.is_empty()).then(|| e.collision.clone()),
+            scenario: e.scenario.clone(),
             learner_step,
             env_steps: total_steps,
         };

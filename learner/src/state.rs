@@ -6,11 +6,12 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Condvar, Mutex, RwLock};
 use std::time::Instant;
 
-use crate::checkpoint::Counters;
-use crate::config::RunConfig;
-use crate::metrics::MetricsLog;
-use crate::net::NetShape;
+use crate::metrics_log::MetricsLog;
+use crate::records::TrainRecord;
 use crate::replay::Replay;
+use agent::NetShape;
+use agent::checkpoint::Counters;
+use agent::config::RunConfig;
 
 /// A published version of the online network's weights.
 #[derive(Debug, Clone, PartialEq)]
@@ -95,6 +96,28 @@ impl Shared {
     #[must_use]
     pub fn current_weights(&self) -> PublishedWeights {
         self.weights.read().expect("weights lock").clone()
+    }
+
+    /// The current counters and training measurements as a `train.jsonl` record.
+    #[must_use]
+    pub fn train_record(&self) -> TrainRecord {
+        let c = self.counters.lock().expect("counters lock").clone();
+        let s = *self.stats.lock().expect("stats lock");
+        let replay_size = self.replay.lock().expect("replay lock").len() as u64;
+        TrainRecord {
+            time_secs: self.run_secs(),
+            learner_step: c.learner_step,
+            env_steps: c.env_steps,
+            transitions_stored: c.transitions_stored,
+            loss: s.loss,
+            mean_q: s.mean_q,
+            updates_per_sec: s.updates_per_sec,
+            env_steps_per_sec: s.env_steps_per_sec,
+            epsilon: s.epsilon,
+            replay_size,
+            weights_version: c.weights_version,
+            episodes: c.episodes,
+        }
     }
 
     /// Records finished episodes in the rolling window.

@@ -1,51 +1,7 @@
 //! `learner status`: asks a learner for its status and prints it, readable or as JSON.
 
-use anyhow::{Context, Result};
 use proto::v1 as pb;
-use proto::v1::learner_client::LearnerClient;
 use serde_json::json;
-use tonic::service::interceptor::InterceptedService;
-use tonic::transport::{Channel, Endpoint};
-
-/// A client of the learner service that sends the auth token, if any.
-pub type Client = LearnerClient<InterceptedService<Channel, TokenInterceptor>>;
-
-/// Connects to a learner at `addr` (`host:port` or `http://host:port`), with an optional token.
-pub async fn connect(addr: &str, token: Option<String>) -> Result<Client> {
-    let url = if addr.starts_with("http://") || addr.starts_with("https://") { addr.to_owned() } else { format!("http://{addr}") };
-    let channel = Endpoint::from_shared(url.clone())
-        .with_context(|| format!("`{addr}` is not a valid address (expected host:port)"))?
-        .connect_timeout(std::time::Duration::from_secs(5))
-        .initial_stream_window_size(Some(crate::serve::STREAM_WINDOW))
-        .initial_connection_window_size(Some(crate::serve::CONNECTION_WINDOW))
-        // A silently dead path (a cut network, a peer that moved) is noticed within ~30 s, not
-        // after TCP's own retransmission timeout of many minutes, so actors reconnect.
-        .http2_keep_alive_interval(std::time::Duration::from_secs(10))
-        .keep_alive_timeout(std::time::Duration::from_secs(20))
-        .keep_alive_while_idle(true)
-        .connect()
-        .await
-        .with_context(|| format!("connecting to the learner at {url}"))?;
-    Ok(LearnerClient::with_interceptor(channel, TokenInterceptor(token))
-        .max_decoding_message_size(256 << 20)
-        .max_encoding_message_size(256 << 20))
-}
-
-/// Adds `authorization: Bearer TOKEN` to every call when a token is set.
-#[derive(Debug, Clone)]
-pub struct TokenInterceptor(pub Option<String>);
-
-impl tonic::service::Interceptor for TokenInterceptor {
-    fn call(&mut self, mut req: tonic::Request<()>) -> Result<tonic::Request<()>, tonic::Status> {
-        if let Some(t) = &self.0 {
-            let v = format!("Bearer {t}")
-                .parse()
-                .map_err(|_| tonic::Status::invalid_argument("the auth token has characters not allowed in a header"))?;
-            req.metadata_mut().insert("authorization", v);
-        }
-        Ok(req)
-    }
-}
 
 /// The status as a JSON value (the `--json` output).
 #[must_use]

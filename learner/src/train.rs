@@ -7,35 +7,12 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use crate::checkpoint;
-use crate::config::RunConfig;
 use crate::dqn::{Batch, Dqn};
-use crate::replay::{RawScalars, Sample, raw_scalars};
+use crate::replay::Sample;
 use crate::state::{PublishedWeights, Shared};
-use sim_core::config::Variant;
-
-/// The network's scalar inputs from an observation's raw scalars: speed/v0; d/d0 for the hybrid
-/// agent; and its path features with `agent.path_features` — scaled so that typical values are
-/// near 1.
-#[must_use]
-pub fn scalar_features(cfg: &RunConfig, raw: &RawScalars) -> Vec<f32> {
-    let r = &cfg.env.reward;
-    let [speed, d, lateral, near, far] = *raw;
-    match cfg.env.variant {
-        // Angles are in radians already; the lateral offset is scaled by a lane's width.
-        Variant::Hybrid if cfg.agent.path_features => vec![speed / r.v0(), d / r.d0, lateral / LANE_WIDTH, near, far],
-        Variant::Hybrid => vec![speed / r.v0(), d / r.d0],
-        Variant::EndToEnd => vec![speed / r.v0()],
-    }
-}
-
-/// Scale of the lateral path feature, metres.
-const LANE_WIDTH: f32 = 3.5;
-
-/// The raw scalars of an environment's current state, as the actor sends them.
-#[must_use]
-pub fn env_scalars(env: &sim_core::env::Env) -> RawScalars {
-    raw_scalars(env.ego.speed, env.tracking.d, env.path_features())
-}
+use agent::config::RunConfig;
+use agent::features::{RawScalars, scalar_features};
+use agent::weights;
 
 /// Turns sampled transitions into an update's batch (the frames are used as they are).
 #[must_use]
@@ -55,7 +32,7 @@ pub fn make_batch(cfg: &RunConfig, s: Sample) -> Batch {
 
 /// Publishes the online weights as a new version.
 pub fn publish(shared: &Shared, dqn: &Dqn) -> anyhow::Result<u64> {
-    let bytes = dqn.online.to_safetensors("")?;
+    let bytes = weights::to_safetensors(&dqn.online, "")?;
     let mut w = shared.weights.write().expect("weights lock");
     let version = w.version + 1;
     *w = PublishedWeights { version, bytes: Arc::new(bytes) };
@@ -132,25 +109,4 @@ fn wait_for_data(shared: &Shared) {
     let guard = lock.lock().expect("wait lock");
     let _ = cv.wait_timeout(guard, Duration::from_millis(50)).expect("wait lock");
     shared.stats.lock().expect("stats lock").idle_secs += started.elapsed().as_secs_f64();
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn scalar_features_follow_the_variant_and_the_path_switch() {
-        let raw = raw_scalars(13.889, 4.0, [1.75, -0.2, 0.6]);
-        let mut cfg = RunConfig::preset("paper").unwrap();
-        let close = |got: Vec<f32>, want: &[f32]| {
-            assert_eq!(got.len(), want.len(), "{got:?}");
-            assert!(got.iter().zip(want).all(|(g, w)| (g - w).abs() < 1e-4), "{got:?} vs {want:?}");
-        };
-        close(scalar_features(&cfg, &raw), &[1.0, 0.5]);
-        cfg.agent.path_features = true;
-        close(scalar_features(&cfg, &raw), &[1.0, 0.5, 0.5, -0.2, 0.6]);
-        assert_eq!(scalar_features(&cfg, &raw).len(), cfg.scalar_inputs());
-        let e2e = RunConfig::preset("end-to-end-tuned").unwrap();
-        close(scalar_features(&e2e, &raw), &[1.0]);
-    }
 }

@@ -9,9 +9,9 @@
 //! observation is an 8×8 gray image, black with a white column at the agent's cell; the scalar
 //! inputs (speed, d) are 0.
 
-use learner::config::{AgentConfig, RunConfig};
+use agent::NetShape;
+use agent::config::{AgentConfig, RunConfig};
 use learner::dqn::Dqn;
-use learner::net::NetShape;
 use learner::replay::{Replay, ReplayConfig, StepRecord};
 use learner::train::make_batch;
 use rand::{RngExt, SeedableRng};
@@ -126,7 +126,7 @@ fn agent_config(o: Options) -> AgentConfig {
 
 /// A fresh agent (the same for every option set: the network depends on the seed alone).
 fn fresh_agent(o: Options) -> Dqn {
-    Dqn::new(shape(), &agent_config(o)).unwrap()
+    Dqn::new(shape(), &agent_config(o))
 }
 
 /// What a training run did.

@@ -7,7 +7,8 @@ use std::fs;
 use std::io::BufReader;
 use std::path::{Path, PathBuf};
 
-use learner::plot::{EpisodeRecord, PlotError, PlotOptions, TrainRecord, plot_runs, read_episodes, read_train};
+use learner::plot::{PlotError, PlotOptions, plot_runs};
+use learner::records::{EpisodeRecord, RecordsError, TrainRecord, read_episodes, read_train};
 
 /// A small deterministic noise source in [-1, 1).
 struct Noise(u64);
@@ -188,13 +189,13 @@ fn a_malformed_middle_line_is_an_error_naming_file_and_line() {
     fs::write(&path, format!("{good}\n{{\"episode_index\": \"two\"}}\n{good}\n")).unwrap();
 
     let err = read_episodes(&path).unwrap_err();
-    assert!(matches!(&err, PlotError::Parse { line: 2, path: p, .. } if *p == path), "{err:?}");
+    assert!(matches!(&err, RecordsError::Parse { line: 2, path: p, .. } if *p == path), "{err:?}");
     let msg = err.to_string();
     assert!(msg.contains(&path.display().to_string()) && msg.contains("line 2"), "{msg}");
 
     // The same through plot_runs.
     let err = plot_runs(&[run], &tmp.path().join("out.png"), &PlotOptions::default()).unwrap_err();
-    assert!(matches!(err, PlotError::Parse { line: 2, .. }), "{err:?}");
+    assert!(matches!(err, PlotError::Records(RecordsError::Parse { line: 2, .. })), "{err:?}");
 }
 
 #[test]

@@ -4,34 +4,16 @@
 use std::path::Path;
 use std::time::Duration;
 
-use learner::config::RunConfig;
+use agent::config::RunConfig;
 use learner::serve::{Running, ServeOptions, start};
 use proto::v1 as pb;
 use proto::v1::learner_client::LearnerClient;
-use sim_core::camera::CameraConfig;
 use tonic::Code;
 use tonic::transport::Channel;
 
-/// A tiny run: 16×16 gray camera, a small network, training after 32 transitions.
-fn tiny_config(run_dir: &Path) -> RunConfig {
-    let mut cfg = RunConfig::default();
-    cfg.env.camera = Some(CameraConfig { width: 16, height: 16, ..CameraConfig::default() });
-    cfg.agent.conv_filters = 2;
-    cfg.agent.hidden = 8;
-    cfg.agent.batch_size = 8;
-    cfg.agent.min_replay = 32;
-    cfg.agent.replay_capacity = 1000;
-    cfg.agent.replay_ratio = 1.0;
-    cfg.agent.publish_every_updates = 2;
-    cfg.service.listen = "127.0.0.1:0".into();
-    cfg.service.run_dir = run_dir.display().to_string();
-    cfg.service.checkpoint_interval_secs = 3600;
-    cfg
-}
-
 async fn start_tiny(dir: &Path, resume: bool, token: Option<&Path>) -> Running {
     let cfg_path = dir.join("run.toml");
-    std::fs::write(&cfg_path, tiny_config(&dir.join("run")).to_toml()).unwrap();
+    std::fs::write(&cfg_path, RunConfig::tiny(&dir.join("run")).to_toml()).unwrap();
     start(ServeOptions { config: Some(cfg_path), resume, auth_token_file: token.map(Path::to_path_buf), ..ServeOptions::default() })
         .await
         .unwrap()
@@ -217,7 +199,7 @@ async fn a_token_is_required_when_configured() {
     let token = dir.path().join("token");
     std::fs::write(&token, "s3cret\n").unwrap();
     let cfg_path = dir.path().join("run.toml");
-    std::fs::write(&cfg_path, tiny_config(&dir.path().join("run")).to_toml()).unwrap();
+    std::fs::write(&cfg_path, RunConfig::tiny(&dir.path().join("run")).to_toml()).unwrap();
     let running = start(ServeOptions {
         config: Some(cfg_path),
         auth_token_file: Some(token.clone()),
@@ -229,9 +211,9 @@ async fn a_token_is_required_when_configured() {
     let mut c = client(&running).await;
     let err = c.status(pb::StatusRequest {}).await.unwrap_err();
     assert_eq!(err.code(), Code::Unauthenticated);
-    let mut authed = learner::status::connect(&running.addr.to_string(), Some("s3cret".into())).await.unwrap();
+    let mut authed = proto::client::connect(&running.addr.to_string(), Some("s3cret".into())).await.unwrap();
     assert!(authed.status(pb::StatusRequest {}).await.is_ok());
-    let mut wrong = learner::status::connect(&running.addr.to_string(), Some("nope".into())).await.unwrap();
+    let mut wrong = proto::client::connect(&running.addr.to_string(), Some("nope".into())).await.unwrap();
     assert_eq!(wrong.status(pb::StatusRequest {}).await.unwrap_err().code(), Code::Unauthenticated);
 
     // The Prometheus endpoint answers plain HTTP with the text format.

@@ -1,78 +1,9 @@
-//! Metrics: JSON-lines records in the run directory (`episodes.jsonl`, one line per finished
-//! episode; `train.jsonl`, one line per reporting interval — the format `learner plot` reads) and
-//! the Prometheus text exposition served on `--metrics-listen`.
+//! The Prometheus text exposition of the learner's state, served over HTTP on
+//! `--metrics-listen`.
 
-use std::fs::{File, OpenOptions};
-use std::io::{BufWriter, Write};
-use std::path::Path;
-use std::sync::Mutex;
-
-use serde_json::json;
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
 
 use crate::state::Shared;
-
-/// Appends JSON lines to the run directory's metrics files.
-#[derive(Debug)]
-pub struct MetricsLog {
-    episodes: Mutex<BufWriter<File>>,
-    train: Mutex<BufWriter<File>>,
-}
-
-/// A finished episode as written to `episodes.jsonl`.
-#[derive(Debug, Clone, PartialEq)]
-pub struct EpisodeLine<'a> {
-    pub time_secs: f64,
-    pub episode_index: u64,
-    pub actor_id: &'a str,
-    pub env: u32,
-    pub episode_return: f64,
-    pub steps: u32,
-    pub arrived: bool,
-    pub collision: Option<&'a str>,
-    pub scenario: &'a str,
-    pub learner_step: u64,
-    pub env_steps: u64,
-}
-
-impl MetricsLog {
-    /// Opens (appending) the files in `run_dir`.
-    pub fn open(run_dir: &Path) -> std::io::Result<Self> {
-        let open = |name: &str| OpenOptions::new().create(true).append(true).open(run_dir.join(name)).map(BufWriter::new);
-        Ok(Self { episodes: Mutex::new(open("episodes.jsonl")?), train: Mutex::new(open("train.jsonl")?) })
-    }
-
-    /// Writes one episode line.
-    pub fn episode(&self, e: &EpisodeLine<'_>) -> std::io::Result<()> {
-        let line = json!({
-            "time_secs": e.time_secs, "episode_index": e.episode_index, "actor_id": e.actor_id, "env": e.env,
-            "return": e.episode_return, "steps": e.steps, "arrived": e.arrived, "collision": e.collision,
-            "scenario": e.scenario, "learner_step": e.learner_step, "env_steps": e.env_steps,
-        });
-        writeln!(self.episodes.lock().expect("metrics lock"), "{line}")
-    }
-
-    /// Writes one interval line from the shared state.
-    pub fn interval(&self, shared: &Shared) -> std::io::Result<()> {
-        let c = shared.counters.lock().expect("counters lock").clone();
-        let s = *shared.stats.lock().expect("stats lock");
-        let replay_size = shared.replay.lock().expect("replay lock").len();
-        let line = json!({
-            "time_secs": shared.run_secs(), "learner_step": c.learner_step, "env_steps": c.env_steps,
-            "transitions_stored": c.transitions_stored, "loss": s.loss, "mean_q": s.mean_q,
-            "updates_per_sec": s.updates_per_sec, "env_steps_per_sec": s.env_steps_per_sec, "epsilon": s.epsilon,
-            "replay_size": replay_size, "weights_version": c.weights_version, "episodes": c.episodes,
-        });
-        writeln!(self.train.lock().expect("metrics lock"), "{line}")?;
-        self.flush()
-    }
-
-    /// Flushes both files.
-    pub fn flush(&self) -> std::io::Result<()> {
-        self.episodes.lock().expect("metrics lock").flush()?;
-        self.train.lock().expect("metrics lock").flush()
-    }
-}
 
 /// The Prometheus text exposition of the learner's state.
 #[must_use]

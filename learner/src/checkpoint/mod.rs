@@ -1,72 +1,33 @@
-//! Checkpoints: the whole learner state in `RUN_DIR/checkpoint/`, replaced atomically.
-//!
-//! Files (format version [`FORMAT_VERSION`]):
-//! - `online.safetensors`, `target.safetensors`: the parameters of the two networks
-//!   ([`Params::to_safetensors`]);
-//! - `optimizer.safetensors`: Adam's moments, tensors `m.<param>` and `v.<param>` for every
-//!   parameter;
-//! - `state.json`: the [`Counters`], Adam's step count and learning rate, the format version;
-//! - `config.toml`: the effective run configuration, as the caller passed it;
-//! - `manifest.json`: the format version and, for every file above, its length and 64-bit FNV-1a
-//!   hash.
+//! Saving and loading the learner's whole state as a checkpoint (the format: `agent::checkpoint`).
 //!
 //! Saving writes everything into a fresh sibling directory `checkpoint.tmp-<pid>-<n>`, fsyncs the
-//! files and the directory, then swaps it in: `checkpoint` → `checkpoint.old`, the temporary
-//! directory → `checkpoint`, remove `checkpoint.old` (fsyncing the run directory after the
-//! renames). Renames are atomic and `checkpoint` only ever names a complete directory, so after a
-//! crash at any point there is a complete `checkpoint`, or (crash between the two renames) only a
-//! complete `checkpoint.old`; [`load`] takes the first, else the second. One process writes a run
-//! directory at a time.
+//! files and the directory, then swaps it in ([`atomic`]): `checkpoint` → `checkpoint.old`, the
+//! temporary directory → `checkpoint`, remove `checkpoint.old` (fsyncing the run directory after
+//! the renames). Renames are atomic and `checkpoint` only ever names a complete directory, so
+//! after a crash at any point there is a complete `checkpoint`, or (crash between the two renames)
+//! only a complete `checkpoint.old`; [`load`] takes the first, else the second. One process writes
+//! a run directory at a time.
 //!
 //! Loading verifies the manifest (every file present, lengths and hashes, version) and decodes and
 //! shape-checks every file before it touches the [`Dqn`]: a refused checkpoint leaves the agent as
 //! it was, and the error names the file and what is wrong with it.
 
+mod atomic;
+
 use std::fs;
-use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
 
-use candle_core::Tensor;
-use serde::{Deserialize, Serialize};
+use agent::checkpoint::{
+    CONFIG, CheckpointError, Counters, FILES, FORMAT_VERSION, MANIFEST, OLD_DIR, ONLINE, OPTIMIZER, STATE, State, TARGET, TMP_PREFIX,
+    locate, manifest_of, read_verified,
+};
+use agent::weights::{self, WeightsError};
 
 use crate::dqn::Dqn;
-use crate::fastnet::Params;
-use crate::fastnet::params::ParamsFileError;
+use atomic::{io_error, remove_stale_temporaries, swap_in, sync_dir, write_synced};
 
-/// The format written, and the only one read.
-pub const FORMAT_VERSION: u32 = 1;
-/// The checkpoint directory inside the run directory.
-pub const DIR: &str = "checkpoint";
-/// Where the previous checkpoint waits while a new one is swapped in.
-pub const OLD_DIR: &str = "checkpoint.old";
-/// Prefix of the temporary directories a save writes into.
-const TMP_PREFIX: &str = "checkpoint.tmp-";
-
-pub const ONLINE: &str = "online.safetensors";
-pub const TARGET: &str = "target.safetensors";
-pub const OPTIMIZER: &str = "optimizer.safetensors";
-pub const STATE: &str = "state.json";
-pub const CONFIG: &str = "config.toml";
-pub const MANIFEST: &str = "manifest.json";
-
-/// The files the manifest covers, in the order they are written and verified.
-const FILES: [&str; 5] = [ONLINE, TARGET, OPTIMIZER, STATE, CONFIG];
-
-/// The learner's progress, saved with the networks.
-#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
-pub struct Counters {
-    pub run_id: String,
-    pub learner_step: u64,
-    pub env_steps: u64,
-    pub transitions_received: u64,
-    pub transitions_stored: u64,
-    pub transitions_rejected: u64,
-    pub batches_rejected: u64,
-    pub episodes: u64,
-    pub weights_version: u64,
-    pub elapsed_secs: f64,
-}
+pub use agent::checkpoint::{dir, exists};
 
 /// What [`load`] returns besides the restored [`Dqn`].
 #[derive(Debug, Clone, PartialEq)]
@@ -76,90 +37,6 @@ pub struct Loaded {
     pub config_toml: String,
 }
 
-/// A checkpoint that could not be written or read. Every variant names the file or directory.
-#[derive(Debug, thiserror::Error)]
-pub enum CheckpointError {
-    #[error("no checkpoint in {} (neither {DIR}/ nor {OLD_DIR}/)", .0.display())]
-    NotFound(PathBuf),
-    #[error("checkpoint {}: {action}: {source}", path.display())]
-    Io {
-        path: PathBuf,
-        action: &'static str,
-        #[source]
-        source: std::io::Error,
-    },
-    #[error("checkpoint {} is missing", path.display())]
-    Missing { path: PathBuf },
-    #[error("checkpoint {} is corrupt: {reason}", path.display())]
-    Corrupt { path: PathBuf, reason: String },
-    #[error("checkpoint {} has format version {found}; this build reads version {FORMAT_VERSION}", path.display())]
-    UnsupportedVersion { path: PathBuf, found: u32 },
-    #[error("checkpoint {} does not fit this network: {reason}", path.display())]
-    Incompatible { path: PathBuf, reason: String },
-    #[error("checkpoint {}: serialising: {reason}", path.display())]
-    Serialise { path: PathBuf, reason: String },
-}
-
-/// `state.json`.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-struct State {
-    version: u32,
-    counters: Counters,
-    /// Adam steps taken.
-    adam_t: u64,
-    /// Adam's learning rate when saved (for the record: [`load`] keeps the [`Dqn`]'s own, which
-    /// comes from the configuration the run resumes with).
-    learning_rate: f64,
-    /// `counters.elapsed_secs` as IEEE-754 bits. serde_json writes the shortest decimal that
-    /// round-trips, but its default parser (without the `float_roundtrip` feature) can land one
-    /// ulp off, so the exact value travels as bits too; [`load`] checks the two agree.
-    elapsed_secs_bits: u64,
-}
-
-/// `manifest.json`.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-struct Manifest {
-    version: u32,
-    files: Vec<FileEntry>,
-}
-
-/// Just the version of a manifest, read first so that a future layout is reported as a version
-/// mismatch rather than as unparsable.
-#[derive(Debug, Deserialize)]
-struct ManifestVersion {
-    version: u32,
-}
-
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-struct FileEntry {
-    name: String,
-    bytes: u64,
-    /// 64-bit FNV-1a of the file's bytes, 16 lowercase hex digits.
-    fnv1a64: String,
-}
-
-/// 64-bit FNV-1a (Fowler–Noll–Vo). Not cryptographic; it detects corruption: a change of any
-/// single byte always changes the hash (each step is a bijection of the state).
-#[must_use]
-pub fn fnv1a64(bytes: &[u8]) -> u64 {
-    const OFFSET: u64 = 0xcbf2_9ce4_8422_2325;
-    const PRIME: u64 = 0x0000_0100_0000_01b3;
-    bytes.iter().fold(OFFSET, |h, &b| (h ^ u64::from(b)).wrapping_mul(PRIME))
-}
-
-/// The checkpoint directory of `run_dir`.
-#[must_use]
-pub fn dir(run_dir: &Path) -> PathBuf {
-    run_dir.join(DIR)
-}
-
-/// Whether `run_dir` holds a checkpoint (complete, or left as `checkpoint.old` by a crash during a
-/// swap). Says nothing of its integrity: [`load`] checks that.
-#[must_use]
-pub fn exists(run_dir: &Path) -> bool {
-    run_dir.join(DIR).join(MANIFEST).is_file() || run_dir.join(OLD_DIR).join(MANIFEST).is_file()
-}
-
 /// Saves the whole learner state into `run_dir/checkpoint/`, replacing any previous checkpoint
 /// atomically (see the module documentation). Returns the checkpoint directory.
 pub fn save(run_dir: &Path, dqn: &Dqn, counters: &Counters, config_toml: &str) -> Result<PathBuf, CheckpointError> {
@@ -167,9 +44,9 @@ pub fn save(run_dir: &Path, dqn: &Dqn, counters: &Counters, config_toml: &str) -
     let final_dir = dir(run_dir);
     let serialise = |name: &str, reason: String| CheckpointError::Serialise { path: final_dir.join(name), reason };
 
-    let online = dqn.online.to_safetensors("").map_err(|e| serialise(ONLINE, message(&e)))?;
-    let target = dqn.target.to_safetensors("").map_err(|e| serialise(TARGET, message(&e)))?;
-    let optimizer = optimizer_safetensors(dqn).map_err(|e| serialise(OPTIMIZER, message(&e)))?;
+    let online = weights::to_safetensors(&dqn.online, "").map_err(|e| serialise(ONLINE, e.to_string()))?;
+    let target = weights::to_safetensors(&dqn.target, "").map_err(|e| serialise(TARGET, e.to_string()))?;
+    let optimizer = optimizer_safetensors(dqn).map_err(|e| serialise(OPTIMIZER, e.to_string()))?;
     let state = State {
         version: FORMAT_VERSION,
         counters: counters.clone(),
@@ -179,14 +56,7 @@ pub fn save(run_dir: &Path, dqn: &Dqn, counters: &Counters, config_toml: &str) -
     };
     let state = serde_json::to_vec_pretty(&state).map_err(|e| serialise(STATE, e.to_string()))?;
     let contents: [&[u8]; 5] = [&online, &target, &optimizer, &state, config_toml.as_bytes()];
-    let manifest = Manifest {
-        version: FORMAT_VERSION,
-        files: FILES
-            .iter()
-            .zip(contents)
-            .map(|(name, bytes)| FileEntry { name: (*name).into(), bytes: bytes.len() as u64, fnv1a64: format!("{:016x}", fnv1a64(bytes)) })
-            .collect(),
-    };
+    let manifest = manifest_of(FILES.into_iter().zip(contents));
     let manifest = serde_json::to_vec_pretty(&manifest).map_err(|e| serialise(MANIFEST, e.to_string()))?;
 
     static SAVES: AtomicU64 = AtomicU64::new(0);
@@ -256,9 +126,9 @@ pub fn load(run_dir: &Path, dqn: &mut Dqn) -> Result<Loaded, CheckpointError> {
 
     let decode = |bytes: &[u8], name: &str, prefix: &str| {
         let path = dir.join(name);
-        Params::from_safetensors(dqn.shape, bytes, prefix).map_err(|e| match e {
-            ParamsFileError::NotSafetensors(_) => CheckpointError::Corrupt { path, reason: e.to_string() },
-            ParamsFileError::Mismatch(reason) => CheckpointError::Incompatible { path, reason },
+        weights::from_safetensors(dqn.shape, bytes, prefix).map_err(|e| match e {
+            WeightsError::Mismatch(reason) => CheckpointError::Incompatible { path, reason },
+            other => CheckpointError::Corrupt { path, reason: other.to_string() },
         })
     };
     let online = decode(&online, ONLINE, "")?;
@@ -277,153 +147,17 @@ pub fn load(run_dir: &Path, dqn: &mut Dqn) -> Result<Loaded, CheckpointError> {
 }
 
 /// Adam's moments as a safetensors file: `m.<param>` and `v.<param>` for every slot.
-fn optimizer_safetensors(dqn: &Dqn) -> candle_core::Result<Vec<u8>> {
-    let mut named: Vec<(String, Tensor)> = Vec::new();
-    for (kind, moment) in [("m", &dqn.adam.m), ("v", &dqn.adam.v)] {
-        named.extend(moment.tensors()?.into_iter().map(|(name, t)| (format!("{kind}.{name}"), t)));
-    }
-    named.sort_by(|a, b| a.0.cmp(&b.0));
-    safetensors::serialize(named.iter().map(|(k, t)| (k.as_str(), t)), None)
-        .map_err(|e| candle_core::Error::Msg(format!("serialising moments: {e}")))
-}
-
-/// The directory to load: `checkpoint`, else `checkpoint.old`.
-fn locate(run_dir: &Path) -> Result<PathBuf, CheckpointError> {
-    let current = run_dir.join(DIR);
-    if current.is_dir() {
-        return Ok(current);
-    }
-    let old = run_dir.join(OLD_DIR);
-    if old.is_dir() {
-        tracing::warn!("{} is absent (interrupted save): loading {}", current.display(), old.display());
-        return Ok(old);
-    }
-    Err(CheckpointError::NotFound(run_dir.to_owned()))
-}
-
-/// Reads the manifest and every file it must list, checking version, lengths and hashes. Returns
-/// the files' bytes in [`FILES`] order.
-fn read_verified(dir: &Path) -> Result<[Vec<u8>; 5], CheckpointError> {
-    let manifest_path = dir.join(MANIFEST);
-    let corrupt_manifest = |reason: String| CheckpointError::Corrupt { path: manifest_path.clone(), reason };
-    let bytes = read(&manifest_path)?;
-    let version: ManifestVersion = serde_json::from_slice(&bytes).map_err(|e| corrupt_manifest(format!("unparsable JSON: {e}")))?;
-    if version.version != FORMAT_VERSION {
-        return Err(CheckpointError::UnsupportedVersion { path: manifest_path, found: version.version });
-    }
-    let manifest: Manifest = serde_json::from_slice(&bytes).map_err(|e| corrupt_manifest(format!("unparsable JSON: {e}")))?;
-    for (i, entry) in manifest.files.iter().enumerate() {
-        if !FILES.contains(&entry.name.as_str()) {
-            return Err(corrupt_manifest(format!("lists unknown file `{}`", entry.name)));
-        }
-        if manifest.files[..i].iter().any(|e| e.name == entry.name) {
-            return Err(corrupt_manifest(format!("lists `{}` twice", entry.name)));
-        }
-    }
-    let mut out: [Vec<u8>; 5] = Default::default();
-    for (name, slot) in FILES.iter().zip(&mut out) {
-        let entry = manifest.files.iter().find(|e| e.name == *name).ok_or_else(|| corrupt_manifest(format!("does not list `{name}`")))?;
-        let expected = u64::from_str_radix(&entry.fnv1a64, 16)
-            .ok()
-            .filter(|_| entry.fnv1a64.len() == 16)
-            .ok_or_else(|| corrupt_manifest(format!("hash of `{name}` is not 16 hex digits: {:?}", entry.fnv1a64)))?;
-        let path = dir.join(name);
-        let bytes = read(&path)?;
-        let len = bytes.len() as u64;
-        if len != entry.bytes {
-            let reason = if len < entry.bytes {
-                format!("truncated: {len} bytes, the manifest records {}", entry.bytes)
-            } else {
-                format!("{len} bytes, the manifest records {}", entry.bytes)
-            };
-            return Err(CheckpointError::Corrupt { path, reason });
-        }
-        let found = fnv1a64(&bytes);
-        if found != expected {
-            return Err(CheckpointError::Corrupt {
-                path,
-                reason: format!("checksum mismatch (expected {expected:016x}, found {found:016x})"),
-            });
-        }
-        *slot = bytes;
-    }
-    Ok(out)
-}
-
-/// Swaps the complete directory `tmp` in as `run_dir/checkpoint`.
-fn swap_in(run_dir: &Path, tmp: &Path) -> Result<(), CheckpointError> {
-    let current = run_dir.join(DIR);
-    let old = run_dir.join(OLD_DIR);
-    if current.is_dir() {
-        if old.exists() {
-            // Stale (a crash after the swap): `checkpoint` is complete, so this can go.
-            fs::remove_dir_all(&old).map_err(io_error(&old, "removing a stale previous checkpoint"))?;
-        }
-        fs::rename(&current, &old).map_err(io_error(&current, "moving the previous checkpoint aside"))?;
-    }
-    fs::rename(tmp, &current).map_err(io_error(tmp, "renaming the new checkpoint into place"))?;
-    sync_dir(run_dir)
-}
-
-/// Removes the temporary directories of other processes' interrupted saves.
-fn remove_stale_temporaries(run_dir: &Path, pid: u32) {
-    let Ok(entries) = fs::read_dir(run_dir) else { return };
-    let ours = format!("{TMP_PREFIX}{pid}-");
-    for entry in entries.flatten() {
-        let name = entry.file_name();
-        let name = name.to_string_lossy();
-        if name.starts_with(TMP_PREFIX)
-            && !name.starts_with(&ours)
-            && entry.path().is_dir()
-            && let Err(e) = fs::remove_dir_all(entry.path())
-        {
-            tracing::warn!("removing the stale {}: {e}", entry.path().display());
-        }
-    }
-}
-
-fn write_synced(path: &Path, bytes: &[u8]) -> Result<(), CheckpointError> {
-    let mut f = fs::File::create(path).map_err(io_error(path, "creating"))?;
-    f.write_all(bytes).map_err(io_error(path, "writing"))?;
-    f.sync_all().map_err(io_error(path, "syncing"))
-}
-
-/// Makes a directory's entries (creations, renames) durable. A no-op where directories cannot be
-/// opened as files.
-fn sync_dir(path: &Path) -> Result<(), CheckpointError> {
-    #[cfg(unix)]
-    fs::File::open(path).and_then(|d| d.sync_all()).map_err(io_error(path, "syncing the directory"))?;
-    #[cfg(not(unix))]
-    let _ = path;
-    Ok(())
-}
-
-/// A candle error's message without the backtrace candle attaches when `RUST_BACKTRACE` is set.
-fn message(e: &candle_core::Error) -> String {
-    match e {
-        candle_core::Error::WithBacktrace { inner, .. } => message(inner),
-        other => other.to_string(),
-    }
-}
-
-fn read(path: &Path) -> Result<Vec<u8>, CheckpointError> {
-    fs::read(path).map_err(|source| match source.kind() {
-        std::io::ErrorKind::NotFound => CheckpointError::Missing { path: path.to_owned() },
-        _ => CheckpointError::Io { path: path.to_owned(), action: "reading", source },
-    })
-}
-
-fn io_error(path: &Path, action: &'static str) -> impl Fn(std::io::Error) -> CheckpointError + use<> {
-    let path = path.to_owned();
-    move |source| CheckpointError::Io { path: path.clone(), action, source }
+fn optimizer_safetensors(dqn: &Dqn) -> Result<Vec<u8>, WeightsError> {
+    weights::to_safetensors_multi(&[("m.", &dqn.adam.m), ("v.", &dqn.adam.v)])
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::config::AgentConfig;
     use crate::dqn::{Batch, UpdateStats};
-    use crate::net::NetShape;
+    use agent::NetShape;
+    use agent::checkpoint::{DIR, Manifest, fnv1a64};
+    use agent::config::AgentConfig;
 
     fn shape() -> NetShape {
         NetShape { height: 8, width: 8, channels: 1, scalars: 2, actions: 2, filters: 2, hidden: 4 }
@@ -454,7 +188,7 @@ mod tests {
     /// An agent after 4 updates (target synced at update 3, so target ≠ online, and Adam's
     /// moments are non-zero).
     fn trained(shape: NetShape) -> Dqn {
-        let mut dqn = Dqn::new(shape, &cfg()).unwrap();
+        let mut dqn = Dqn::new(shape, &cfg());
         let b = batch();
         for _ in 0..4 {
             dqn.update(&b);
@@ -484,8 +218,8 @@ mod tests {
     /// Everything of a Dqn that a checkpoint covers.
     fn snapshot(dqn: &Dqn) -> (Vec<u8>, Vec<u8>, Vec<u8>, u64, u64) {
         (
-            dqn.online.to_safetensors("").unwrap(),
-            dqn.target.to_safetensors("").unwrap(),
+            weights::to_safetensors(&dqn.online, "").unwrap(),
+            weights::to_safetensors(&dqn.target, "").unwrap(),
             optimizer_safetensors(dqn).unwrap(),
             dqn.adam.t,
             dqn.updates,
@@ -494,7 +228,7 @@ mod tests {
 
     /// A fresh agent of `shape` initialised from another seed than the saved one.
     fn fresh(shape: NetShape) -> Dqn {
-        Dqn::new(shape, &AgentConfig { seed: 8, ..cfg() }).unwrap()
+        Dqn::new(shape, &AgentConfig { seed: 8, ..cfg() })
     }
 
     /// Replaces a file of a checkpoint and updates the manifest to match, so that the defect
@@ -519,14 +253,6 @@ mod tests {
     }
 
     #[test]
-    fn fnv1a64_matches_the_reference_vectors() {
-        // From the FNV reference test suite (Noll, fnv_test.c / IETF draft-eastlake-fnv).
-        assert_eq!(fnv1a64(b""), 0xcbf2_9ce4_8422_2325);
-        assert_eq!(fnv1a64(b"a"), 0xaf63_dc4c_8601_ec8c);
-        assert_eq!(fnv1a64(b"foobar"), 0x8594_4171_f739_67e8);
-    }
-
-    #[test]
     fn round_trip_is_bit_exact_and_resume_continues_exactly() {
         let tmp = tempfile::tempdir().unwrap();
         let mut saved = trained(shape());
@@ -539,8 +265,8 @@ mod tests {
             ["config.toml", "manifest.json", "online.safetensors", "optimizer.safetensors", "state.json", "target.safetensors"]
         );
         // The files hold exactly what the serialisers produce.
-        assert_eq!(fs::read(dir.join(ONLINE)).unwrap(), saved.online.to_safetensors("").unwrap());
-        assert_eq!(fs::read(dir.join(TARGET)).unwrap(), saved.target.to_safetensors("").unwrap());
+        assert_eq!(fs::read(dir.join(ONLINE)).unwrap(), weights::to_safetensors(&saved.online, "").unwrap());
+        assert_eq!(fs::read(dir.join(TARGET)).unwrap(), weights::to_safetensors(&saved.target, "").unwrap());
         assert_eq!(fs::read(dir.join(OPTIMIZER)).unwrap(), optimizer_safetensors(&saved).unwrap());
         assert_eq!(fs::read_to_string(dir.join(CONFIG)).unwrap(), CONFIG_TOML);
 
@@ -563,7 +289,11 @@ mod tests {
             assert_eq!(bits(&a), bits(&r));
             assert_eq!(snapshot(&resumed), snapshot(&saved));
         }
-        assert_eq!(saved.online.to_safetensors("").unwrap(), saved.target.to_safetensors("").unwrap(), "synced at update 6");
+        assert_eq!(
+            weights::to_safetensors(&saved.online, "").unwrap(),
+            weights::to_safetensors(&saved.target, "").unwrap(),
+            "synced at update 6"
+        );
     }
 
     #[test]

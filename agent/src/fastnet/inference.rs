@@ -1,8 +1,9 @@
 //! Acting with the network: parameters, buffers, and greedy actions for a batch of observations.
 
 use super::model::FastNet;
-use super::params::{Params, ParamsFileError};
-use crate::net::NetShape;
+use super::params::Params;
+use crate::shape::NetShape;
+use crate::weights::{self, WeightsError};
 
 /// A Q-network ready to act: the actors' and the evaluator's view of the network.
 #[derive(Debug)]
@@ -16,13 +17,14 @@ pub struct Inference {
 impl Inference {
     /// The network initialised from `seed` (as the learner's, before any weights arrive), on
     /// `threads` threads.
-    pub fn new(shape: NetShape, seed: u64, threads: usize) -> candle_core::Result<Self> {
-        Ok(Self { params: Params::init(shape, seed)?, net: FastNet::new(shape, threads), frames: Vec::new() })
+    #[must_use]
+    pub fn new(shape: NetShape, seed: u64, threads: usize) -> Self {
+        Self { params: Params::init(shape, seed), net: FastNet::new(shape, threads), frames: Vec::new() }
     }
 
     /// Replaces the parameters with a weights file's (as the learner publishes them).
-    pub fn load(&mut self, bytes: &[u8]) -> Result<(), ParamsFileError> {
-        self.params = Params::from_safetensors(self.net.shape, bytes, "")?;
+    pub fn load(&mut self, bytes: &[u8]) -> Result<(), WeightsError> {
+        self.params = weights::from_safetensors(self.net.shape, bytes, "")?;
         Ok(())
     }
 

@@ -1,4 +1,4 @@
-//! The paper's Q-network (see `net`) computed on the CPU with the kernels of this module: the
+//! The paper's Q-network (see `crate::shape`) computed on the CPU with the kernels of this module: the
 //! forward pass for inference and training, and the backward pass to every parameter's gradient.
 //!
 //! The convolution stack runs image by image, so the batch is split across threads with no
@@ -11,7 +11,7 @@ use super::conv::{self, ConvGeom};
 use super::gemm::{View, matmul};
 use super::params::{CONV_B, CONV_W, FC1_B, FC1_W, FC2_B, FC2_W, Params, Q_B, Q_W};
 use super::pool::{self, Strided};
-use crate::net::NetShape;
+use crate::shape::NetShape;
 
 /// The buffers of one thread's share of the batch.
 #[derive(Debug, Default)]

@@ -1,10 +1,11 @@
-//! The fast network against candle's reference network (`net::QNetwork`): same Q values and same
+//! The fast network against candle's reference network (`agent::reference::QNetwork`): same Q values and same
 //! gradients within 1e-4 relative error, over odd sizes, batch splits and thread counts; and its
 //! gradients against finite differences.
 
+use agent::NetShape;
+use agent::fastnet::{FastNet, Params};
+use agent::reference::{images_tensor, network, var_map};
 use candle_core::{Device, Tensor};
-use learner::fastnet::{FastNet, Params};
-use learner::net::{NetShape, images_tensor, network};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
@@ -21,7 +22,7 @@ fn random_floats(n: usize, seed: u64) -> Vec<f32> {
 /// Candle's Q values and the gradients of `Σ q·coef` for every parameter.
 fn reference(shape: NetShape, params: &Params, images: &[u8], scalars: &[f32], coef: &[f32]) -> (Vec<f32>, Params) {
     let dev = Device::Cpu;
-    let vars = params.to_var_map().unwrap();
+    let vars = var_map(params).unwrap();
     let net = network(&vars, shape, &dev).unwrap();
     let frame = shape.height * shape.width * shape.channels;
     let refs: Vec<&[u8]> = images.chunks_exact(frame).collect();
@@ -49,7 +50,7 @@ fn rel_err(a: &[f32], b: &[f32]) -> f32 {
 /// Compares Q values, and gradients when `grads` (candle's average-pooling gradient is wrong
 /// where a pooled size is odd: see the finite-difference test of odd sizes).
 fn check_against_candle(shape: NetShape, batch: usize, threads: usize, seed: u64, grads: bool) {
-    let params = Params::init(shape, seed).unwrap();
+    let params = Params::init(shape, seed);
     let images = random_bytes(batch * shape.height * shape.width * shape.channels, seed + 1);
     let scalars = random_floats(batch * shape.scalars, seed + 2);
     let coef = random_floats(batch * shape.actions, seed + 3);
@@ -98,7 +99,7 @@ fn matches_candle_at_the_paper_width() {
 #[test]
 fn repeated_calls_reuse_buffers_without_leaking_state() {
     let shape = NetShape { height: 16, width: 12, channels: 3, scalars: 2, actions: 4, filters: 8, hidden: 8 };
-    let params = Params::init(shape, 9).unwrap();
+    let params = Params::init(shape, 9);
     let mut net = FastNet::new(shape, 2);
     let a = random_bytes(4 * 16 * 12 * 3, 10);
     let b = random_bytes(2 * 16 * 12 * 3, 11);
@@ -130,7 +131,7 @@ fn gradients_agree_with_finite_differences_on_odd_sizes() {
 /// f64 central differences of the f32 network on a tiny shape: a check of the backward pass
 /// that does not rely on candle.
 fn finite_differences(shape: NetShape) {
-    let mut params = Params::init(shape, 21).unwrap();
+    let mut params = Params::init(shape, 21);
     let images = random_bytes(2 * shape.height * shape.width * shape.channels, 22);
     let scalars = random_floats(2 * shape.scalars, 23);
     let coef = random_floats(2 * shape.actions, 24);

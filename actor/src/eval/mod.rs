@@ -1,0 +1,206 @@
+//! `actor eval`: the paper's Table I. Each checkpoint is driven greedily (ε = 0: always the action
+//! of highest Q, ties to the lowest index) on the seven evaluation routes, `--runs` times each
+//! with different traffic (run k uses seed S + k), beside the model-based baseline — the A\*
+//! planner followed by the reference controller, the `expert` of `actor drive`. Per route and
+//! agent: the average cumulative reward (the paper's metric), completion and collision rates,
+//! mean d, mean speed and steps, with the paper's Table I figures as a reference.
+//!
+//! A checkpoint describes itself: its `config.toml` gives the camera, the network, the action set
+//! and the variant (whether d is an input). Every agent drives in the same conditions (the
+//! `paper` preset's environment, its traffic unless `--traffic`, the evaluation time limit) and
+//! is scored with the same reward, the paper's (r_w included): the paper used its training reward
+//! as the evaluation metric, and one scale keeps the end-to-end agent's numbers comparable — it
+//! still never sees d.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, Result, bail};
+use clap::Args;
+
+mod report;
+mod run;
+
+use crate::greedy::{EPSILON, GreedyAgent, load_checkpoint};
+use crate::routes::parse_routes;
+use report::table;
+use run::{Agent, Driver, EvalOptions, evaluate, model_based};
+
+#[derive(Debug, Args)]
+pub struct EvalArgs {
+    /// A checkpoint: a run directory (of `actor train` or `learner serve`), its `checkpoint/`
+    /// directory, or the `online.safetensors` in it. Repeat for several agents.
+    #[arg(long, value_name = "PATH")]
+    pub checkpoint: Vec<PathBuf>,
+    /// Names of the checkpoints in the table, in the order of --checkpoint (default: the run
+    /// directory's name).
+    #[arg(long, value_name = "NAME")]
+    pub name: Vec<String>,
+    /// Runs per route; run k uses seed S + k (different traffic).
+    #[arg(long, default_value_t = 5)]
+    pub runs: u32,
+    /// Base seed.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Routes: `all` seven, or names separated by commas (straight_highway, straight_urban,
+    /// straight_under_bridge, slight_curve, sharp_curve, right_turn, left_turn).
+    #[arg(long, default_value = "all")]
+    pub route: String,
+    /// Moving traffic cars (default: the paper preset's, 20).
+    #[arg(long)]
+    pub traffic: Option<usize>,
+    /// Print one JSON object on the last line of stdout instead of the table.
+    #[arg(long, conflicts_with = "markdown")]
+    pub json: bool,
+    /// Print the table as Markdown.
+    #[arg(long)]
+    pub markdown: bool,
+    /// Also write the JSON object to this file.
+    #[arg(long, value_name = "FILE")]
+    pub json_out: Option<PathBuf>,
+}
+
+/// The name of a checkpoint in the table: its run directory's name.
+fn default_name(agent: &GreedyAgent, path: &Path) -> String {
+    let named = agent.source.run_dir.as_deref().unwrap_or(path);
+    let canonical = named.canonicalize().unwrap_or_else(|_| named.to_owned());
+    canonical.file_name().map_or_else(|| path.display().to_string(), |n| n.to_string_lossy().into_owned())
+}
+
+/// `actor eval`.
+pub fn run(args: &EvalArgs) -> Result<()> {
+    if args.name.len() > args.checkpoint.len() {
+        bail!("{} --name given for {} --checkpoint: give at most one name per checkpoint", args.name.len(), args.checkpoint.len());
+    }
+    let mut routes = Vec::new();
+    for name in args.route.split(',').map(str::trim).filter(|s| !s.is_empty()) {
+        routes.extend(parse_routes(name)?);
+    }
+    if routes.is_empty() {
+        bail!("--route `{}` names no route", args.route);
+    }
+    let mut agents = vec![model_based()];
+    for (k, path) in args.checkpoint.iter().enumerate() {
+        let agent = load_checkpoint(path)?;
+        let mut name = args.name.get(k).cloned().unwrap_or_else(|| default_name(&agent, path));
+        let base = name.clone();
+        let mut n = 2;
+        while agents.iter().any(|a| a.name == name) {
+            name = format!("{base}#{n}");
+            n += 1;
+        }
+        agents.push(Agent { name, driver: Driver::Greedy(Box::new(agent)) });
+    }
+    let opts = EvalOptions { routes, runs: args.runs, seed: args.seed, traffic: args.traffic, progress: true };
+    eprintln!(
+        "evaluating {} agent(s) on {} route(s) × {} run(s) (seeds {}..={}), greedy (ε = {EPSILON})",
+        agents.len(),
+        opts.routes.len(),
+        opts.runs,
+        opts.seed,
+        opts.seed + u64::from(opts.runs.max(1) - 1)
+    );
+    let report = evaluate(&mut agents, &opts)?;
+    let json = serde_json::to_string(&report)?;
+    if let Some(path) = &args.json_out {
+        write_atomically(path, json.as_bytes())?;
+    }
+    if args.json {
+        println!("{json}");
+    } else {
+        print!("{}", table(&report, args.markdown));
+    }
+    Ok(())
+}
+
+/// Writes through a temporary file and a rename, so that an interrupted run leaves no half file.
+fn write_atomically(path: &Path, bytes: &[u8]) -> Result<()> {
+    let tmp = path.with_extension(format!("tmp-{}", std::process::id()));
+    std::fs::write(&tmp, bytes).with_context(|| format!("writing {}", tmp.display()))?;
+    std::fs::rename(&tmp, path).with_context(|| format!("renaming {} to {}", tmp.display(), path.display()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::testing::{tiny_config, write_checkpoint};
+    use sim_core::config::Variant;
+    use sim_core::scenario::{EvalRoute, Scenario};
+
+    fn opts(routes: &[EvalRoute], runs: u32) -> EvalOptions {
+        EvalOptions {
+            routes: routes.iter().map(|&r| (r.name(), Scenario::Eval(r))).collect(),
+            runs,
+            seed: 0,
+            traffic: None,
+            progress: false,
+        }
+    }
+
+    #[test]
+    fn a_fresh_checkpoint_evaluates_beside_the_baseline_and_the_json_has_the_documented_shape() {
+        let dir = tempfile::tempdir().unwrap();
+        let run_dir = dir.path().join("hybrid-run");
+        write_checkpoint(&run_dir, &tiny_config(Variant::Hybrid));
+        let agent = load_checkpoint(&run_dir).unwrap();
+        assert_eq!((agent.source.learner_step, agent.source.episodes), (Some(7), Some(9)));
+        assert_eq!(default_name(&agent, &run_dir), "hybrid-run");
+        let mut agents = vec![model_based(), Agent { name: "fresh".into(), driver: Driver::Greedy(Box::new(agent)) }];
+        let report = evaluate(&mut agents, &opts(&[EvalRoute::SharpCurve], 1)).unwrap();
+        let v: serde_json::Value = serde_json::from_str(&serde_json::to_string(&report).unwrap()).unwrap();
+        let agents = v["agents"].as_array().unwrap();
+        assert_eq!(agents.len(), 2);
+        assert_eq!(agents[0]["name"], "model-based");
+        assert_eq!(agents[1]["name"], "fresh");
+        assert_eq!(agents[1]["variant"], "hybrid");
+        for a in agents {
+            let routes = a["routes"].as_array().unwrap();
+            assert_eq!(routes.len(), 1);
+            assert_eq!(routes[0]["route"], "sharp_curve");
+            for key in ["mean_return", "completion_rate", "collision_rate", "mean_d", "mean_speed_kmh", "mean_steps"] {
+                assert!(routes[0][key].is_number(), "{key} missing in {}", routes[0]);
+            }
+            assert_eq!(routes[0]["paper_hybrid_dqn"].as_f64().unwrap() as f32, -74.4);
+        }
+        // The baseline completes the route (as `actor drive --policy expert` does).
+        let expert = &report.agents[0].routes[0];
+        assert_eq!((expert.completed, expert.collisions, expert.completion_rate), (1, 0, 1.0));
+        assert!(expert.mean_return > 0.0 && expert.mean_speed_kmh > 5.0, "{expert:?}");
+        // The table shows the paper's figure as a reference.
+        let t = table(&report, false);
+        assert!(t.contains("sharp_curve") && t.contains("-74.4") && t.contains("-8.9"), "{t}");
+        let md = table(&report, true);
+        assert!(md.lines().next().unwrap().starts_with("| route | agent | mean return |"), "{md}");
+    }
+
+    #[test]
+    fn evaluation_is_deterministic_and_does_not_depend_on_batching() {
+        let dir = tempfile::tempdir().unwrap();
+        write_checkpoint(dir.path(), &tiny_config(Variant::EndToEnd));
+        let weights = dir.path().join("checkpoint").join("online.safetensors");
+        let run = |runs: u32| {
+            let agent = load_checkpoint(&weights).unwrap();
+            assert_eq!(agent.cfg.net_shape().scalars, 1, "end-to-end: speed only");
+            let mut agents = vec![Agent { name: "e2e".into(), driver: Driver::Greedy(Box::new(agent)) }];
+            evaluate(&mut agents, &opts(&[EvalRoute::StraightUrban], runs)).unwrap().agents.remove(0).routes.remove(0)
+        };
+        let (one, two) = (run(1), run(2));
+        // Run 0 of a batch of two is the lone run of a batch of one: rows of a batch are
+        // independent and each run's traffic comes from its own seed.
+        assert_eq!(one.min_return.to_bits(), one.max_return.to_bits());
+        assert!(two.min_return.to_bits() == one.mean_return.to_bits() || two.max_return.to_bits() == one.mean_return.to_bits());
+        assert_eq!(run(1).mean_return.to_bits(), one.mean_return.to_bits());
+    }
+
+    #[test]
+    fn a_hybrid_checkpoint_with_path_features_sees_them() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut cfg = tiny_config(Variant::Hybrid);
+        cfg.agent.path_features = true;
+        write_checkpoint(dir.path(), &cfg);
+        let agent = load_checkpoint(dir.path()).unwrap();
+        assert_eq!(agent.cfg.net_shape().scalars, 5, "speed, d and three path features");
+        let mut agents = vec![Agent { name: "hybrid".into(), driver: Driver::Greedy(Box::new(agent)) }];
+        let row = evaluate(&mut agents, &opts(&[EvalRoute::RightTurn], 1)).unwrap().agents.remove(0).routes.remove(0);
+        assert!(row.mean_return.is_finite() && row.mean_steps > 0.0, "{row:?}");
+    }
+}

@@ -1,0 +1,34 @@
+//! What a command drives on: the town (the embedded default or a map file) and the routes named on
+//! the command line.
+
+use std::sync::Arc;
+
+use anyhow::{Context, Result};
+use sim_core::scenario::{EvalRoute, Scenario};
+use sim_core::town::Town;
+
+/// The routes named on the command line: a route name, `all` seven, or `random` (random training
+/// routes, for any map).
+pub fn parse_routes(arg: &str) -> Result<Vec<(&'static str, Scenario)>> {
+    Ok(match arg {
+        "all" => EvalRoute::ALL.iter().map(|&r| (r.name(), Scenario::Eval(r))).collect(),
+        "random" => vec![("random", Scenario::Random)],
+        name => {
+            let r = EvalRoute::from_name(name).with_context(|| {
+                format!("unknown route `{name}`: expected `all`, `random` or one of {}", EvalRoute::ALL.map(EvalRoute::name).join(", "))
+            })?;
+            vec![(r.name(), Scenario::Eval(r))]
+        }
+    })
+}
+
+/// Loads the town: the embedded default or a map file.
+pub fn load_town(map: Option<&std::path::Path>) -> Result<Arc<Town>> {
+    match map {
+        None => Ok(Town::default_town()),
+        Some(path) => {
+            let text = std::fs::read_to_string(path).with_context(|| format!("reading map file {}", path.display()))?;
+            Town::from_map_text(&text).with_context(|| format!("loading map file {}", path.display()))
+        }
+    }
+}

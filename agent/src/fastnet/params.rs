@@ -1,0 +1,103 @@
+//! The network's parameters as flat `f32` vectors in candle's (and PyTorch's) layouts and in the
+//! order of [`NetShape::parameters`], so that weights files are the same whichever implementation
+//! made them (`crate::weights` reads and writes them); their seeded initialisation; and Adam.
+
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+use crate::shape::NetShape;
+
+/// Indices into [`Params::values`], in [`NetShape::parameters`] order.
+pub const CONV_W: [usize; 3] = [0, 2, 4];
+pub const CONV_B: [usize; 3] = [1, 3, 5];
+pub const FC1_W: usize = 6;
+pub const FC1_B: usize = 7;
+pub const FC2_W: usize = 8;
+pub const FC2_B: usize = 9;
+pub const Q_W: usize = 10;
+pub const Q_B: usize = 11;
+
+/// Every parameter of a network (or a gradient or moment of the same shape).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Params {
+    pub shape: NetShape,
+    /// (name, dims) in [`NetShape::parameters`] order.
+    pub names: Vec<(String, Vec<usize>)>,
+    pub values: Vec<Vec<f32>>,
+}
+
+impl Params {
+    /// All zeros.
+    #[must_use]
+    pub fn zeros(shape: NetShape) -> Self {
+        let names = shape.parameters();
+        let values = names.iter().map(|(_, d)| vec![0f32; d.iter().product()]).collect();
+        Self { shape, names, values }
+    }
+
+    /// The seeded initialisation (candle's own CPU initialisation cannot be seeded): weights
+    /// uniform in ±√(6/fan_in) (He/Kaiming uniform), biases uniform in ±1/√fan_in, drawn from one
+    /// `ChaCha8` stream in [`NetShape::parameters`] order.
+    #[must_use]
+    pub fn init(shape: NetShape, seed: u64) -> Self {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let mut p = Self::zeros(shape);
+        for ((name, dims), values) in p.names.iter().zip(&mut p.values) {
+            let fan_in = shape.fan_in(name) as f64;
+            let bound = if dims.len() > 1 { (6.0 / fan_in).sqrt() } else { 1.0 / fan_in.sqrt() };
+            for v in values.iter_mut() {
+                *v = ((f64::from(rng.next_u32()) / f64::from(u32::MAX) * 2.0 - 1.0) * bound) as f32;
+            }
+        }
+        p
+    }
+
+    /// The L2 norm of all values together.
+    #[must_use]
+    pub fn norm(&self) -> f32 {
+        self.values.iter().flatten().map(|x| f64::from(*x) * f64::from(*x)).sum::<f64>().sqrt() as f32
+    }
+}
+
+/// Adam (Kingma & Ba 2015) on flat parameters, with gradients clipped to a global norm.
+#[derive(Debug, Clone)]
+pub struct Adam {
+    pub lr: f64,
+    pub beta1: f64,
+    pub beta2: f64,
+    pub eps: f64,
+    /// Steps taken.
+    pub t: u64,
+    /// First and second moments.
+    pub m: Params,
+    pub v: Params,
+}
+
+impl Adam {
+    /// Moments at zero.
+    #[must_use]
+    pub fn new(shape: NetShape, lr: f64) -> Self {
+        Self { lr, beta1: 0.9, beta2: 0.999, eps: 1e-8, t: 0, m: Params::zeros(shape), v: Params::zeros(shape) }
+    }
+
+    /// One step on `params` with `grads` rescaled so that their global norm is at most `clip`.
+    /// Returns the norm before clipping.
+    pub fn step(&mut self, params: &mut Params, grads: &Params, clip: f32) -> f32 {
+        let norm = grads.norm();
+        let scale = if norm > clip { clip / norm } else { 1.0 };
+        self.t += 1;
+        let (b1, b2) = (self.beta1 as f32, self.beta2 as f32);
+        let bc1 = (1.0 - self.beta1.powi(self.t as i32)) as f32;
+        let bc2 = (1.0 - self.beta2.powi(self.t as i32)) as f32;
+        let (lr, eps) = (self.lr as f32, self.eps as f32);
+        for (((p, g), m), v) in params.values.iter_mut().zip(&grads.values).zip(&mut self.m.values).zip(&mut self.v.values) {
+            for (((p, &g), m), v) in p.iter_mut().zip(g).zip(m.iter_mut()).zip(v.iter_mut()) {
+                let g = g * scale;
+                *m = b1 * *m + (1.0 - b1) * g;
+                *v = b2 * *v + (1.0 - b2) * g * g;
+                *p -= (*m / bc1) / ((*v / bc2).sqrt() + eps) * lr;
+            }
+        }
+        norm
+    }
+}

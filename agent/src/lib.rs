@@ -1,0 +1,20 @@
+//! `agent`: what the driving agent is, shared by the learner (which trains it) and the actor
+//! (which drives with it): its Q-network ([`shape`], computed by [`fastnet`]), its weights file
+//! ([`weights`]), its run configuration ([`config`], [`presets`]), how observations become network
+//! inputs ([`features`]) and how checkpoints are found and verified ([`checkpoint`]).
+//!
+//! No async runtime, network, plotting or tensor library: candle's version of the network
+//! ([`reference`]) is behind the `reference` feature, for tests and benchmarks.
+
+pub mod checkpoint;
+pub mod config;
+pub mod fastnet;
+pub mod features;
+pub mod presets;
+#[cfg(feature = "reference")]
+pub mod reference;
+pub mod shape;
+pub mod weights;
+
+pub use config::RunConfig;
+pub use shape::NetShape;
