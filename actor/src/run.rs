@@ -12,8 +12,9 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
+use agent::NetShape;
 use agent::config::{AgentConfig, RunConfig};
-use agent::fastnet::Inference;
+use agent::fastnet::{Inference, Params};
 use anyhow::{Context, Result};
 use proto::client::{Client, connect};
 use proto::v1 as pb;
@@ -50,8 +51,9 @@ struct Outbox {
 #[derive(Debug)]
 struct Link {
     outbox: Mutex<Outbox>,
-    /// Newest weights fetched and not yet loaded: (version, safetensors).
-    fresh_weights: Mutex<Option<(u64, Vec<u8>)>>,
+    /// Newest weights fetched, decoded and not yet acted with: (version, parameters). Decoded by
+    /// the weights task, so that the stepping thread only swaps them in.
+    fresh_weights: Mutex<Option<(u64, Params)>>,
     /// Version the policy acts with.
     acting_version: AtomicU64,
     stop: AtomicBool,
@@ -140,7 +142,8 @@ pub async fn run(opts: ActorOptions) -> Result<()> {
             .spawn(move || step_loop(&cfg, &link, envs, seed, index, batch_steps, buffer_steps))?
     };
     link.connected.store(true, Ordering::SeqCst);
-    let weights = tokio::spawn(weights_loop(opts.clone(), token.clone(), link.clone(), reg.actor_id.clone(), client.clone()));
+    let weights =
+        tokio::spawn(weights_loop(opts.clone(), token.clone(), link.clone(), reg.actor_id.clone(), client.clone(), run_cfg.net_shape()));
     let progress = tokio::spawn(progress_loop(link.clone()));
     send_loop(&opts, &token, &link, client, reg, &mut rng).await;
     weights.abort();
@@ -258,7 +261,7 @@ async fn reconnect(
 }
 
 /// Polls for new weights every second; never blocks the stepping thread.
-async fn weights_loop(opts: ActorOptions, token: Option<String>, link: Arc<Link>, actor_id: String, mut client: Client) {
+async fn weights_loop(opts: ActorOptions, token: Option<String>, link: Arc<Link>, actor_id: String, mut client: Client, shape: NetShape) {
     loop {
         if link.stop.load(Ordering::SeqCst) {
             return;
@@ -268,7 +271,10 @@ async fn weights_loop(opts: ActorOptions, token: Option<String>, link: Arc<Link>
             Ok(w) => {
                 let w = w.into_inner();
                 if !w.safetensors.is_empty() && w.version > have {
-                    *link.fresh_weights.lock().expect("weights lock") = Some((w.version, w.safetensors));
+                    match agent::weights::from_safetensors(shape, &w.safetensors, "") {
+                        Ok(params) => *link.fresh_weights.lock().expect("weights lock") = Some((w.version, params)),
+                        Err(err) => tracing::warn!(%err, version = w.version, "weights refused"),
+                    }
                 }
             }
             Err(_) => {
@@ -333,11 +339,9 @@ fn step_loop(cfg: &RunConfig, link: &Link, n: usize, seed: u64, index: u32, batc
     }
     let mut total_steps = 0u64;
     while !link.stop.load(Ordering::SeqCst) {
-        if let Some((version, bytes)) = link.fresh_weights.lock().expect("weights lock").take() {
-            match net.load(&bytes) {
-                Ok(()) => link.acting_version.store(version, Ordering::SeqCst),
-                Err(err) => tracing::warn!(%err, version, "weights refused"),
-            }
+        if let Some((version, params)) = link.fresh_weights.lock().expect("weights lock").take() {
+            net.params = params;
+            link.acting_version.store(version, Ordering::SeqCst);
         }
         // One batched forward pass for all environments.
         let scalars: Vec<f32> = envs.iter().flat_map(|e| agent::features::scalar_features(cfg, &agent::features::env_scalars(e))).collect();

@@ -1,0 +1,72 @@
+//! The crate graph's "must never depend on" rules of ARCHITECTURE.md, checked against what Cargo
+//! resolves (`cargo tree -e normal`, the crates a package's own build links, with its default
+//! features) and, for the one allowed edge from the actor to the learner, against the sources.
+
+use std::path::Path;
+use std::process::Command;
+
+/// The packages `package` links (normal dependencies, transitively), by name.
+fn normal_dependencies(package: &str) -> Vec<String> {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+    let out = Command::new(env!("CARGO"))
+        .current_dir(&root)
+        .args(["tree", "--offline", "--locked", "-e", "normal", "--prefix", "none", "--format", "{p}", "-p", package])
+        .output()
+        .expect("running cargo tree");
+    assert!(out.status.success(), "cargo tree -p {package}: {}", String::from_utf8_lossy(&out.stderr));
+    let mut names: Vec<String> =
+        String::from_utf8_lossy(&out.stdout).lines().filter_map(|l| l.split_whitespace().next()).map(str::to_owned).collect();
+    names.sort();
+    names.dedup();
+    names
+}
+
+/// Fails naming every forbidden crate `package` links.
+fn assert_never(package: &str, forbidden: &[&str]) {
+    let deps = normal_dependencies(package);
+    let found: Vec<&&str> = forbidden.iter().filter(|f| deps.iter().any(|d| d == **f)).collect();
+    assert!(found.is_empty(), "{package} must never depend on {found:?} (ARCHITECTURE.md, \"Crates and their edges\")");
+}
+
+#[test]
+fn sim_core_is_pure() {
+    assert_never("sim-core", &["tokio", "tonic", "prost", "candle-core", "plotters", "gemm", "proto", "agent", "learner", "actor"]);
+}
+
+#[test]
+fn proto_knows_only_the_wire() {
+    assert_never("proto", &["sim-core", "agent", "learner", "actor", "candle-core", "plotters"]);
+}
+
+#[test]
+fn agent_has_no_runtime_network_tensor_library_or_plotting() {
+    assert_never("agent", &["tokio", "tonic", "prost", "candle-core", "candle-nn", "plotters", "proto", "learner", "actor"]);
+}
+
+#[test]
+fn learner_never_depends_on_the_actor() {
+    assert_never("learner", &["actor"]);
+}
+
+#[test]
+fn the_actor_links_no_reflection_plotting_or_candle() {
+    assert_never("actor", &["tonic-reflection", "plotters", "candle-core", "candle-nn"]);
+}
+
+#[test]
+fn only_actor_train_uses_the_learner() {
+    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
+    let mut users = Vec::new();
+    let mut stack = vec![src.clone()];
+    while let Some(dir) = stack.pop() {
+        for entry in std::fs::read_dir(&dir).unwrap() {
+            let path = entry.unwrap().path();
+            if path.is_dir() {
+                stack.push(path);
+            } else if path.extension().is_some_and(|e| e == "rs") && std::fs::read_to_string(&path).unwrap().contains("learner::") {
+                users.push(path.strip_prefix(&src).unwrap().display().to_string());
+            }
+        }
+    }
+    assert_eq!(users, ["train.rs"], "only actor/src/train.rs may use the learner crate (ARCHITECTURE.md)");
+}
