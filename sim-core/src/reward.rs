@@ -6,7 +6,8 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::config::{ConfigError, Variant};
+use crate::config::error::ConfigError;
+use crate::config::variant::Variant;
 
 /// Reward constants. Defaults are the paper's ([`RewardConfig::paper`]).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

@@ -7,7 +7,7 @@ use serde::{Deserialize, Serialize};
 use super::palette::{self, raster_table};
 use super::{Image, SceneBox};
 use crate::collision::Obb;
-use crate::config::ConfigError;
+use crate::config::error::ConfigError;
 use crate::math::{Vec2, cross};
 use crate::route::Route;
 use crate::town::Town;

@@ -11,7 +11,7 @@ use serde::{Deserialize, Serialize};
 use super::palette::{self, luma, scale};
 use super::{CAR_HEIGHT, Image, SceneBox};
 use crate::collision::Obb;
-use crate::config::ConfigError;
+use crate::config::error::ConfigError;
 use crate::map::Overpass;
 use crate::math::{Vec2, cross, dir, left_normal, tan};
 use crate::town::Town;
