@@ -4,8 +4,9 @@
 
 use serde::{Deserialize, Serialize};
 
+use super::image::Image;
 use super::palette::{self, raster_table};
-use super::{Image, SceneBox};
+use super::scene::SceneBox;
 use crate::collision::Obb;
 use crate::config::error::ConfigError;
 use crate::math::{Vec2, cross};
