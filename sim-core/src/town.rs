@@ -1,5 +1,6 @@
 //! A [`Town`]: a map with everything derived from it once and shared by every environment —
-//! the planning graph, the static-obstacle grid, per-lane speed caps and connector indices.
+//! the planning graph, the static-obstacle grid, per-lane speed caps, connector indices and
+//! the static scenery's render boxes.
 
 use std::sync::Arc;
 
