@@ -11,20 +11,15 @@ use crate::camera::{BirdsEye, Camera, Image, SceneBox, car_box};
 use crate::collision::{CollisionKind, Obb, leaves_drivable_area};
 use crate::config::{ConfigError, EnvConfig, Variant};
 use crate::map::LaneId;
-use crate::math::{Vec2, heading_of, left_normal, wrap_angle};
+use crate::math::{Vec2, left_normal};
+pub use crate::path_features::PATH_FEATURES;
+use crate::path_features::path_features;
 use crate::reward::{Outcome, RewardTerms};
 use crate::route::{Route, RouteTracker, Tracking};
 use crate::scenario::{Scenario, eval_route, random_route};
 use crate::town::Town;
 use crate::traffic::{EgoRequest, EgoView, RELEASE_DISTANCE, Traffic};
 use crate::vehicle::{Action, VehicleState};
-
-/// How many numbers [`Env::path_features`] gives.
-pub const PATH_FEATURES: usize = 3;
-
-/// Route distance ahead of the ego vehicle whose direction is the far path feature, metres: far
-/// enough to see a junction's turn before the vehicle must brake for it.
-const FAR_PREVIEW: f32 = 25.0;
 
 /// What the agent observes.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -254,17 +249,12 @@ impl Env {
 
     /// The planner's path as seen from the ego vehicle, beyond the paper's d (which has no sign and
     /// no direction): the signed lateral offset from the route's centre line (metres, positive to
-    /// the left), the angle from the ego heading to the route point a pure-pursuit lookahead ahead
-    /// (radians, positive to the left), and the same angle to the route point 25 m ahead, which
-    /// previews turns and curves.
+    /// the left), the angle from the ego heading to the route point a speed-dependent preview
+    /// distance ahead (radians, positive to the left), and the same angle to the route point 25 m
+    /// ahead, which previews turns and curves. Defined in `path_features.rs`.
     #[must_use]
     pub fn path_features(&self) -> [f32; PATH_FEATURES] {
-        let s = self.tracking.s;
-        let angle_to = |ahead: f32| {
-            let to = self.route.path.point_at(s + ahead) - self.ego.pos;
-            if to.length_squared() < 1e-6 { 0.0 } else { wrap_angle(heading_of(to) - self.ego.heading) }
-        };
-        [self.tracking.lateral, angle_to(crate::expert::lookahead(self.ego.speed)), angle_to(FAR_PREVIEW)]
+        path_features(&self.route, &self.tracking, &self.ego)
     }
 
     /// The last front-camera image (empty without a camera).

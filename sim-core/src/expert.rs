@@ -14,7 +14,8 @@ const LOOKAHEAD: f32 = 60.0;
 /// Half-width of the corridor along the route in which another vehicle counts as ahead, metres.
 const CORRIDOR: f32 = 2.6;
 
-/// The pure-pursuit lookahead at speed `v` (m/s), metres.
+/// The pure-pursuit lookahead at speed `v` (m/s), metres. Free to retune: the observation's
+/// path features have their own, frozen preview distance (`path_features::near_preview`).
 #[must_use]
 pub fn lookahead(v: f32) -> f32 {
     (0.5 * v + 3.0).clamp(4.0, 12.0)

@@ -13,6 +13,7 @@ pub mod env;
 pub mod expert;
 pub mod map;
 pub mod math;
+pub mod path_features;
 pub mod polyline;
 pub mod reward;
 pub mod route;

@@ -6,9 +6,10 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::config::{ConfigError, Variant};
+use crate::config::error::ConfigError;
+use crate::config::variant::Variant;
 
-/// Reward constants. Defaults are the paper's.
+/// Reward constants. Defaults are the paper's ([`RewardConfig::paper`]).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct RewardConfig {
@@ -32,8 +33,11 @@ pub struct RewardConfig {
     pub clip: Option<f32>,
 }
 
-impl Default for RewardConfig {
-    fn default() -> Self {
+impl RewardConfig {
+    /// The paper's constants (eq. 4–8): r_c = −1, +100 on arrival within 5 m, v0 = 50 km/h,
+    /// d0 = 8 m, every weight 1, no clipping. Presets that train "the paper's agent" start here.
+    #[must_use]
+    pub const fn paper() -> Self {
         Self {
             collision: -1.0,
             arrival: 100.0,
@@ -45,6 +49,13 @@ impl Default for RewardConfig {
             beta_w: 1.0,
             clip: None,
         }
+    }
+}
+
+impl Default for RewardConfig {
+    /// [`RewardConfig::paper`].
+    fn default() -> Self {
+        Self::paper()
     }
 }
 
@@ -135,8 +146,13 @@ mod tests {
     const V0: f32 = 50.0 / 3.6;
 
     #[test]
+    fn the_default_is_the_paper() {
+        assert_eq!(RewardConfig::default(), RewardConfig::paper());
+    }
+
+    #[test]
     fn collision_and_arrival_override_the_shaped_terms() {
-        let r = RewardConfig::default();
+        let r = RewardConfig::paper();
         assert_eq!(r.reward(Variant::Hybrid, Outcome::Collision, V0, 10.0, 20.0, 0.0).total, -1.0);
         assert_eq!(r.reward(Variant::EndToEnd, Outcome::Arrived, 0.0, 4.0, 6.0, 7.0).total, 100.0);
         assert!(r.arrived(4.99) && !r.arrived(5.0));
@@ -144,7 +160,7 @@ mod tests {
 
     #[test]
     fn each_term_matches_the_paper() {
-        let r = RewardConfig::default();
+        let r = RewardConfig::paper();
         // At v0, not moving closer, on a waypoint: r_v = 0, r_l = 0, r_w = 1.
         let t = r.reward(Variant::Hybrid, Outcome::Driving, V0, 100.0, 100.0, 0.0);
         assert_eq!((t.r_v, t.r_l, t.r_w, t.total), (0.0, 0.0, 1.0, 1.0));
@@ -159,14 +175,14 @@ mod tests {
 
     #[test]
     fn end_to_end_has_no_waypoint_term_and_weights_apply() {
-        let r = RewardConfig::default();
+        let r = RewardConfig::paper();
         let t = r.reward(Variant::EndToEnd, Outcome::Driving, V0 / 2.0, 90.0, 100.0, 0.0);
         assert_eq!(t.r_w, 0.0);
         assert!((t.total - (-0.5 + 0.1)).abs() < 1e-6, "{t:?}");
         // β_v = β_l = 0 (and β_c unused when no collision): the reward is r_w alone.
-        let mimic = RewardConfig { beta_v: 0.0, beta_l: 0.0, ..RewardConfig::default() };
+        let mimic = RewardConfig { beta_v: 0.0, beta_l: 0.0, ..RewardConfig::paper() };
         assert_eq!(mimic.reward(Variant::Hybrid, Outcome::Driving, 3.0, 90.0, 100.0, 2.0).total, 0.75);
-        let clipped = RewardConfig { clip: Some(0.5), ..RewardConfig::default() };
+        let clipped = RewardConfig { clip: Some(0.5), ..RewardConfig::paper() };
         assert_eq!(clipped.reward(Variant::Hybrid, Outcome::Driving, V0, 10.0, 10.0, 0.0).total, 0.5);
     }
 }

@@ -1,12 +1,11 @@
 //! A [`Town`]: a map with everything derived from it once and shared by every environment —
-//! the planning graph, the static-obstacle grid, per-lane speed caps and connector indices.
+//! the planning graph, the static-obstacle grid, per-lane speed caps, connector indices and
+//! the static scenery's render boxes.
 
 use std::sync::Arc;
 
-use crate::camera::SceneBox;
-use crate::camera::front::deck_box;
-use crate::camera::palette;
-use crate::collision::{Obb, StaticGrid};
+use crate::camera::scene::{SceneBox, static_boxes};
+use crate::collision::StaticGrid;
 use crate::map::{JunctionId, LaneId, LaneKind, Map, MapError};
 use crate::topology::LaneGraph;
 
@@ -23,7 +22,8 @@ pub struct Town {
     pub curve_speed: Vec<f32>,
     /// Per lane: for connectors, the junction and the connector's position in its list.
     pub connector_slot: Vec<Option<(JunctionId, usize)>>,
-    /// The static scenery as the renderers draw it: obstacles and overpass decks.
+    /// The static scenery as the renderers draw it (obstacles, then overpass decks), prepared
+    /// once here so that no frame rebuilds it; built by `camera::scene`, which decides its looks.
     pub scene_statics: Vec<SceneBox>,
 }
 
@@ -40,13 +40,7 @@ impl Town {
                 connector_slot[c] = Some((j, k));
             }
         }
-        let mut scene_statics: Vec<SceneBox> = map
-            .obstacles
-            .iter()
-            .enumerate()
-            .map(|(k, o)| SceneBox { footprint: Obb::from(o), bottom: 0.0, top: o.height, colour: palette::obstacle(o.kind, k) })
-            .collect();
-        scene_statics.extend(map.overpasses.iter().map(deck_box));
+        let scene_statics = static_boxes(&map);
         Arc::new(Self { map, graph, statics, curve_speed, connector_slot, scene_statics })
     }
 

@@ -73,7 +73,7 @@ fn same_seed_gives_identical_trajectories() {
     if let Some(i) = (0..a.len()).find(|&i| a[i] != b[i]) {
         panic!("trajectories diverge at step {i}");
     }
-    // Episodes last at most time_limit = 200 steps (config.rs default), so 1000 steps span at
+    // Episodes last at most time_limit = 200 steps (config/mod.rs default), so 1000 steps span at
     // least 5 of them: resets are part of what was compared.
     assert!(episodes >= 5, "only {episodes} episodes in 1000 steps");
     let (c, _) = hashed_run(Town::default_town(), 43);
@@ -120,7 +120,7 @@ fn traffic_never_collides_with_itself_and_keeps_moving() {
 #[test]
 fn expert_completes_every_evaluation_route_in_traffic() {
     let town = Town::default_town();
-    // Default traffic: 20 moving cars and 12 parked ones (config.rs).
+    // Default traffic: 20 moving cars and 12 parked ones (config/mod.rs).
     let cfg = config();
     assert_eq!(cfg.traffic.vehicles, 20);
     let mut env = env_with(&town, cfg);

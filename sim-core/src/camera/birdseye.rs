@@ -4,10 +4,11 @@
 
 use serde::{Deserialize, Serialize};
 
+use super::image::Image;
 use super::palette::{self, raster_table};
-use super::{Image, SceneBox};
+use super::scene::SceneBox;
 use crate::collision::Obb;
-use crate::config::ConfigError;
+use crate::config::error::ConfigError;
 use crate::math::{Vec2, cross};
 use crate::route::Route;
 use crate::town::Town;

@@ -8,10 +8,10 @@
 
 use serde::{Deserialize, Serialize};
 
+use super::image::Image;
 use super::palette::{self, luma, scale};
-use super::{CAR_HEIGHT, Image, SceneBox};
-use crate::collision::Obb;
-use crate::config::ConfigError;
+use super::scene::SceneBox;
+use crate::config::error::ConfigError;
 use crate::map::Overpass;
 use crate::math::{Vec2, cross, dir, left_normal, tan};
 use crate::town::Town;
@@ -404,23 +404,12 @@ impl Camera {
     }
 }
 
-/// The deck of an overpass as a floating box.
-pub(crate) fn deck_box(o: &Overpass) -> SceneBox {
-    let axis = o.b - o.a;
-    let footprint = Obb::new((o.a + o.b) / 2.0, Vec2::new(axis.length() / 2.0, o.width / 2.0), axis.y.atan2(axis.x));
-    SceneBox { footprint, bottom: o.clearance, top: o.clearance + o.thickness, colour: palette::DECK }
-}
-
-/// A car as a scene box, coloured by its index.
-#[must_use]
-pub fn car_box(body: Obb, index: usize) -> SceneBox {
-    SceneBox { footprint: body, bottom: 0.0, top: CAR_HEIGHT, colour: palette::CARS[index % palette::CARS.len()] }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::camera::palette::{luma, surface};
+    use crate::camera::scene::car_box;
+    use crate::collision::Obb;
     use crate::map::Surface;
 
     /// A straight east–west road with one pole beside it, no junctions.

@@ -1,9 +1,12 @@
 //! The road map: roads, lanes, junctions, static obstacles and the drivable-surface raster.
 //!
 //! A [`Map`] is immutable once built and shared (`Arc<Map>`) by every environment of a process.
+//! This file holds the map's types and queries; `Map::from_text` (in `load.rs`) reads the text
+//! format (`format.rs`) and builds the geometry (`build.rs`).
 
 mod build;
 pub mod format;
+mod load;
 mod surface;
 
 use crate::math::Vec2;
@@ -154,17 +157,6 @@ pub struct LaneMatch {
 }
 
 impl Map {
-    /// Parses and builds a map from its text.
-    pub fn from_text(text: &str) -> Result<Self, MapError> {
-        build::build(&format::parse(text)?)
-    }
-
-    /// The embedded default town.
-    #[must_use]
-    pub fn default_town() -> Self {
-        Self::from_text(DEFAULT_TOWN).expect("the embedded default town is valid (checked by tests)")
-    }
-
     /// Road by name.
     #[must_use]
     pub fn road_by_name(&self, name: &str) -> Option<RoadId> {

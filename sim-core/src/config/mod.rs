@@ -1,23 +1,22 @@
 //! Environment configuration: every constant of the episode, reward, traffic and vehicle, with
 //! the paper's values as defaults. Validated once, with errors that name the field.
+//!
+//! [`EnvConfig`] gathers the parts; each part's own struct lives beside the code it configures
+//! (`RewardConfig` in `reward.rs`, `CameraConfig` in `camera/front.rs`, `IdmParams` in
+//! `traffic.rs`, `VehicleParams` in `vehicle.rs`). What those parts share with this file —
+//! [`ConfigError`] and [`Variant`] — sits in leaf files below it, so nothing imports this file back.
+
+pub(crate) mod error;
+pub(crate) mod variant;
 
 use serde::{Deserialize, Serialize};
 
+pub use self::error::ConfigError;
+pub use self::variant::Variant;
 use crate::camera::CameraConfig;
 use crate::reward::RewardConfig;
 use crate::traffic::IdmParams;
 use crate::vehicle::VehicleParams;
-
-/// Which agent the environment serves.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum Variant {
-    /// The paper's method: d in the observation, r_w in the reward.
-    #[default]
-    Hybrid,
-    /// The paper's baseline: camera and speed only; no d, no r_w.
-    EndToEnd,
-}
 
 /// Everything an environment needs besides the map.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -81,15 +80,6 @@ impl Default for TrafficConfig {
     fn default() -> Self {
         Self { vehicles: 20, parked_cars: 12, parked_car_ahead: None, spawn_clearance: 25.0, idm: IdmParams::default() }
     }
-}
-
-/// A configuration value that is out of range.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-#[error("config field `{field}`: {message}")]
-pub struct ConfigError {
-    /// Dotted path of the field, e.g. `reward.d0`.
-    pub field: String,
-    pub message: String,
 }
 
 fn check(ok: bool, field: &str, message: impl FnOnce() -> String) -> Result<(), ConfigError> {
