@@ -50,17 +50,7 @@ impl RunConfig {
         cfg.preset = Some(name.to_owned());
         let env = &mut cfg.env;
         env.variant = variant;
-        env.reward = RewardConfig {
-            collision: -1.0,
-            arrival: 100.0,
-            arrival_radius: 5.0,
-            v0_kmh: 50.0,
-            d0: 8.0,
-            beta_v: 1.0,
-            beta_l: 1.0,
-            beta_w: 1.0,
-            clip: None,
-        };
+        env.reward = RewardConfig::paper();
         env.dt = 0.1;
         env.waypoint_spacing = 8.0;
         env.route_length_min = 50.0;

@@ -5,6 +5,12 @@ use super::params::Params;
 use crate::shape::NetShape;
 use crate::weights::{self, WeightsError};
 
+/// Index of the largest value (the first of equals): the greedy action of a row of Q values.
+#[must_use]
+pub fn argmax(v: &[f32]) -> usize {
+    v.iter().enumerate().fold(0, |best, (i, &x)| if x > v[best] { i } else { best })
+}
+
 /// A Q-network ready to act: the actors' and the evaluator's view of the network.
 #[derive(Debug)]
 pub struct Inference {
@@ -41,6 +47,6 @@ impl Inference {
     /// The greedy action of each observation (the first of equal values).
     pub fn greedy<'a>(&mut self, frames: impl IntoIterator<Item = &'a [u8]>, scalars: &[f32]) -> Vec<u32> {
         let actions = self.net.shape.actions;
-        self.q_values(frames, scalars).chunks_exact(actions).map(|q| super::argmax(q) as u32).collect()
+        self.q_values(frames, scalars).chunks_exact(actions).map(|q| argmax(q) as u32).collect()
     }
 }

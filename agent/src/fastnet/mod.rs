@@ -18,15 +18,9 @@ pub mod model;
 pub mod params;
 pub mod pool;
 
-pub use inference::Inference;
+pub use inference::{Inference, argmax};
 pub use model::FastNet;
 pub use params::{Adam, Params};
-
-/// Index of the largest value (the first of equals): the greedy action of a row of Q values.
-#[must_use]
-pub fn argmax(v: &[f32]) -> usize {
-    v.iter().enumerate().fold(0, |best, (i, &x)| if x > v[best] { i } else { best })
-}
 
 /// Threads to use by default: every core the process may run on.
 #[must_use]
