@@ -1,6 +1,4 @@
-//! `actor drive`: runs a policy over evaluation routes and reports per-route outcomes. Also the
-//! pieces `actor eval` shares: route selection ([`parse_routes`]), the town ([`load_town`]) and
-//! the tally of an episode ([`Episode`]).
+//! `actor drive`: runs a policy over evaluation routes and reports per-route outcomes.
 
 use anyhow::{Context, Result};
 use clap::Args;

@@ -22,6 +22,20 @@ pub fn parse_routes(arg: &str) -> Result<Vec<(&'static str, Scenario)>> {
     })
 }
 
+/// A town given by name (an embedded town: `default_town`, the one agents train on, or
+/// `held_out_town`) or as a map file's path.
+pub fn town_by_name_or_file(arg: &str) -> Result<Arc<Town>> {
+    if let Some(town) = Town::embedded(arg) {
+        return Ok(town);
+    }
+    let path = std::path::Path::new(arg);
+    if !path.exists() {
+        let names: Vec<&str> = sim_core::map::EMBEDDED_TOWNS.iter().map(|t| t.0).collect();
+        anyhow::bail!("unknown town `{arg}`: expected one of {} or a map file", names.join(", "));
+    }
+    load_town(Some(path))
+}
+
 /// Loads the town: the embedded default or a map file.
 pub fn load_town(map: Option<&std::path::Path>) -> Result<Arc<Town>> {
     match map {

@@ -75,9 +75,37 @@ impl EvalRoute {
         }
     }
 
-    /// Origin and destination on the default town: (road, forward?, lane index, station along the
-    /// road's centre line from its start node).
-    fn ends(self) -> [(&'static str, bool, usize, f32); 2] {
+    /// Origin and destination on the embedded town `town`: (road, forward?, lane index, station
+    /// along the road's centre line from its start node). Forward lane 0 is next to the centre
+    /// line; a right turn starts in the rightmost lane and a left turn in the leftmost.
+    fn ends(self, town: &str) -> Option<[(&'static str, bool, usize, f32); 2]> {
+        Some(match town {
+            "default_town" => self.default_town_ends(),
+            "held_out_town" => self.held_out_town_ends(),
+            _ => return None,
+        })
+    }
+
+    fn held_out_town_ends(self) -> [(&'static str, bool, usize, f32); 2] {
+        match self {
+            // Eastbound right lane of the arterial west of J1, 140 m of straight.
+            EvalRoute::StraightHighway => [("art_west", true, 1, 20.0), ("art_west", true, 1, 160.0)],
+            // Northbound across the arterial at the multi-lane 4-way junction J1.
+            EvalRoute::StraightUrban => [("st_s", true, 0, 50.0), ("st_n", true, 0, 60.0)],
+            // Eastbound on the arterial under the overpass at x = 560.
+            EvalRoute::StraightUnderBridge => [("art_east", true, 0, 60.0), ("art_east", true, 0, 250.0)],
+            // The rural road's 18° bend of radius 400 m.
+            EvalRoute::SlightCurve => [("rural", true, 0, 15.0), ("rural", true, 0, 255.0)],
+            // The 90° left bend of radius 25 m.
+            EvalRoute::SharpCurve => [("bend", true, 0, 12.0), ("bend", true, 0, 135.0)],
+            // Eastbound on the arterial's right lane, right at J2 into the side street.
+            EvalRoute::RightTurn => [("art_mid", true, 1, 60.0), ("st_j2", true, 0, 70.0)],
+            // Northbound up the side street, left at J2, west on the arterial's left lane.
+            EvalRoute::LeftTurn => [("st_j2", false, 0, 90.0), ("art_mid", false, 0, 110.0)],
+        }
+    }
+
+    fn default_town_ends(self) -> [(&'static str, bool, usize, f32); 2] {
         match self {
             // Eastbound right lane of the highway, 140 m of straight.
             EvalRoute::StraightHighway => [("highway", true, 1, 50.0), ("highway", true, 1, 190.0)],
@@ -96,11 +124,11 @@ impl EvalRoute {
         }
     }
 
-    /// The route's origin and destination as lane positions on `map`. `None` if the map lacks the
-    /// roads (not the default town).
+    /// The route's origin and destination as lane positions on `map`. `None` if the map is not
+    /// an embedded town (by its name) or lacks the roads.
     #[must_use]
     pub fn endpoints(self, map: &Map) -> Option<[LaneMatch; 2]> {
-        let [a, b] = self.ends();
+        let [a, b] = self.ends(&map.name)?;
         Some([lane_position(map, a)?, lane_position(map, b)?])
     }
 }

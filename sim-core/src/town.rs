@@ -50,6 +50,12 @@ impl Town {
         Self::new(Map::default_town())
     }
 
+    /// An embedded town by name (`default_town`, `held_out_town`, see `map::EMBEDDED_TOWNS`).
+    #[must_use]
+    pub fn embedded(name: &str) -> Option<Arc<Self>> {
+        Map::embedded(name).map(Self::new)
+    }
+
     /// Loads a map from text.
     pub fn from_map_text(text: &str) -> Result<Arc<Self>, MapError> {
         Ok(Self::new(Map::from_text(text)?))

@@ -119,21 +119,34 @@ fn traffic_never_collides_with_itself_and_keeps_moving() {
 
 #[test]
 fn expert_completes_every_evaluation_route_in_traffic() {
-    let town = Town::default_town();
+    expert_completes_every_route(&Town::default_town());
+}
+
+#[test]
+fn expert_completes_every_evaluation_route_of_the_held_out_town() {
+    let town = Town::embedded("held_out_town").expect("embedded");
+    assert_eq!(town.map.name, "held_out_town");
+    expert_completes_every_route(&town);
+}
+
+/// The reference driver completes each of the seven routes of `town` (two traffic seeds each)
+/// without a collision: the routes exist, are drivable and are of their type.
+fn expert_completes_every_route(town: &Arc<Town>) {
     // Default traffic: 20 moving cars and 12 parked ones (config/mod.rs).
     let cfg = config();
     assert_eq!(cfg.traffic.vehicles, 20);
-    let mut env = env_with(&town, cfg);
+    let mut env = env_with(town, cfg);
     let expert = Expert::default();
     for route in EvalRoute::ALL {
         for seed in [0, 1] {
-            env.reset(seed, Scenario::Eval(route)).expect("evaluation route on the default town");
+            env.reset(seed, Scenario::Eval(route)).unwrap_or_else(|e| panic!("{} on {}: {e}", route.name(), town.map.name));
             let steps = run_episode(&mut env, |e| expert.act(e));
             let last = steps.last().expect("at least one step");
             assert!(
                 last.info.arrived && last.terminated && last.info.collision.is_none(),
-                "{} seed {seed}: ended after {} steps with {:?}, arrived = {}, progress {}",
+                "{} on {} seed {seed}: ended after {} steps with {:?}, arrived = {}, progress {}",
                 route.name(),
+                town.map.name,
                 steps.len(),
                 last.info.collision,
                 last.info.arrived,
@@ -315,4 +328,25 @@ fn path_features_preview_the_turn_and_point_the_way_back_to_the_route() {
     assert!(lateral > 1.0 && near < -0.05 && far < 0.0, "lateral {lateral}, near {near}, far {far}");
     let mut e2e = env_with(&town, EnvConfig { variant: Variant::EndToEnd, ..config() });
     assert_eq!(e2e.reset(3, Scenario::Eval(EvalRoute::StraightHighway)).expect("straight").path, None);
+}
+
+#[test]
+fn both_towns_routes_are_of_their_type() {
+    use sim_core::scenario::eval_route;
+    for town in [Town::default_town(), Town::embedded("held_out_town").unwrap()] {
+        for route in EvalRoute::ALL {
+            let r = eval_route(&town, route, 8.0).unwrap_or_else(|| panic!("{} on {}: no route", route.name(), town.map.name));
+            let (a, b) = (r.path.heading_at(0.0), r.path.heading_at(r.path.length()));
+            let turn = libm::remainderf(b - a, std::f32::consts::TAU).to_degrees();
+            let ok = match route {
+                EvalRoute::StraightHighway | EvalRoute::StraightUrban | EvalRoute::StraightUnderBridge => turn.abs() < 5.0,
+                EvalRoute::SlightCurve => (10.0..40.0).contains(&turn.abs()),
+                EvalRoute::SharpCurve => (80.0..100.0).contains(&turn.abs()),
+                EvalRoute::RightTurn => (-100.0..-80.0).contains(&turn),
+                EvalRoute::LeftTurn => (80.0..100.0).contains(&turn),
+            };
+            assert!(ok, "{} on {}: turns {turn:.1}° over {:.0} m", route.name(), town.map.name, r.length());
+            assert!((80.0..300.0).contains(&r.length()), "{} on {}: {:.0} m", route.name(), town.map.name, r.length());
+        }
+    }
 }

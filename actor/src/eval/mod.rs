@@ -21,7 +21,7 @@ mod report;
 mod run;
 
 use crate::greedy::{EPSILON, GreedyAgent, load_checkpoint};
-use crate::routes::parse_routes;
+use crate::routes::{parse_routes, town_by_name_or_file};
 use report::table;
 use run::{Agent, Driver, EvalOptions, evaluate, model_based};
 
@@ -45,6 +45,10 @@ pub struct EvalArgs {
     /// straight_under_bridge, slight_curve, sharp_curve, right_turn, left_turn).
     #[arg(long, default_value = "all")]
     pub route: String,
+    /// The town: `default_town` (the one agents train on), `held_out_town` (a second layout no
+    /// training run sees, with its own seven routes of the same types) or a map file.
+    #[arg(long, default_value = "default_town", value_name = "NAME|FILE")]
+    pub town: String,
     /// Moving traffic cars (default: the paper preset's, 20).
     #[arg(long)]
     pub traffic: Option<usize>,
@@ -90,11 +94,13 @@ pub fn run(args: &EvalArgs) -> Result<()> {
         }
         agents.push(Agent { name, driver: Driver::Greedy(Box::new(agent)) });
     }
-    let opts = EvalOptions { routes, runs: args.runs, seed: args.seed, traffic: args.traffic, progress: true };
+    let town = town_by_name_or_file(&args.town)?;
+    let opts = EvalOptions { routes, runs: args.runs, seed: args.seed, traffic: args.traffic, town, progress: true };
     eprintln!(
-        "evaluating {} agent(s) on {} route(s) × {} run(s) (seeds {}..={}), greedy (ε = {EPSILON})",
+        "evaluating {} agent(s) on {} route(s) of {} × {} run(s) (seeds {}..={}), greedy (ε = {EPSILON})",
         agents.len(),
         opts.routes.len(),
+        opts.town.map.name,
         opts.runs,
         opts.seed,
         opts.seed + u64::from(opts.runs.max(1) - 1)
@@ -128,6 +134,7 @@ mod tests {
 
     fn opts(routes: &[EvalRoute], runs: u32) -> EvalOptions {
         EvalOptions {
+            town: sim_core::town::Town::default_town(),
             routes: routes.iter().map(|&r| (r.name(), Scenario::Eval(r))).collect(),
             runs,
             seed: 0,
@@ -170,6 +177,17 @@ mod tests {
         assert!(t.contains("sharp_curve") && t.contains("-74.4") && t.contains("-8.9"), "{t}");
         let md = table(&report, true);
         assert!(md.lines().next().unwrap().starts_with("| route | agent | mean return |"), "{md}");
+    }
+
+    #[test]
+    fn the_held_out_town_is_a_name_and_the_report_says_which_town() {
+        let town = town_by_name_or_file("held_out_town").unwrap();
+        let mut agents = vec![model_based()];
+        let report = evaluate(&mut agents, &EvalOptions { town, ..opts(&[EvalRoute::LeftTurn], 1) }).unwrap();
+        assert_eq!(report.town, "held_out_town");
+        assert_eq!(report.agents[0].routes[0].completed, 1, "the baseline drives the held-out town's left turn");
+        let e = town_by_name_or_file("no_such_town").unwrap_err().to_string();
+        assert!(e.contains("default_town, held_out_town"), "{e}");
     }
 
     #[test]

@@ -51,9 +51,11 @@ pub struct AgentReport {
     pub routes: Vec<RouteResult>,
 }
 
-/// The whole evaluation: `{"agents":[...]}`.
+/// The whole evaluation: `{"town":"...","agents":[...]}`.
 #[derive(Debug, Clone, Serialize)]
 pub struct Report {
+    /// The town driven: its map's name (`default_town`, `held_out_town`, or a map file's).
+    pub town: String,
     pub agents: Vec<AgentReport>,
 }
 
@@ -167,8 +169,9 @@ pub fn table(report: &Report, markdown: bool) -> String {
     }
     let _ = writeln!(
         out,
-        "{}greedy (ε = {EPSILON}), {} run(s) per route with seeds {}.., {} traffic cars; every agent scored with the paper's reward (r_w included). Paper columns: Table I of Yurtsever et al. 2020 (CARLA, human drivers).",
+        "{}Town `{}`; greedy (ε = {EPSILON}), {} run(s) per route with seeds {}.., {} traffic cars; every agent scored with the paper's reward (r_w included). Paper columns: Table I of Yurtsever et al. 2020 (CARLA, human drivers).",
         if markdown { "\n" } else { "" },
+        report.town,
         first.routes.first().map_or(0, |r| r.runs),
         first.seed,
         first.traffic_vehicles

@@ -16,7 +16,6 @@ use crate::episode::Episode;
 use crate::eval::report::{AgentReport, Report, RouteResult};
 use crate::greedy::{EPSILON, GreedyAgent, greedy_actions};
 use crate::policy::Policy;
-use crate::routes::load_town;
 
 /// A policy under evaluation.
 #[derive(Debug)]
@@ -53,6 +52,8 @@ pub struct EvalOptions {
     pub runs: u32,
     pub seed: u64,
     pub traffic: Option<usize>,
+    /// The town driven (the default town, the held-out town or a map file).
+    pub town: std::sync::Arc<sim_core::town::Town>,
     /// Report each route on stderr as it finishes.
     pub progress: bool,
 }
@@ -68,7 +69,7 @@ pub fn evaluate(agents: &mut [Agent], opts: &EvalOptions) -> Result<Report> {
     if opts.runs == 0 {
         bail!("--runs must be at least 1");
     }
-    let town = load_town(None)?;
+    let town = opts.town.clone();
     let total = agents.len() * opts.routes.len();
     let started = Instant::now();
     let mut done = 0usize;
@@ -124,7 +125,7 @@ pub fn evaluate(agents: &mut [Agent], opts: &EvalOptions) -> Result<Report> {
             routes,
         });
     }
-    Ok(Report { agents: reports })
+    Ok(Report { town: town.map.name.clone(), agents: reports })
 }
 
 /// Drives one run per environment on `scenario` (run k with seed `seed + k`) in lockstep, the

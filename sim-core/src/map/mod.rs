@@ -21,8 +21,13 @@ pub type JunctionId = usize;
 /// Index of a road in [`Map::roads`].
 pub type RoadId = usize;
 
-/// The default town, embedded in the binary.
+/// The default town, embedded in the binary: the town agents train on.
 pub const DEFAULT_TOWN: &str = include_str!("default_town.map");
+/// The held-out town, embedded in the binary: a second layout no training run uses, with its own
+/// seven evaluation routes, to test whether an agent generalises.
+pub const HELD_OUT_TOWN: &str = include_str!("held_out_town.map");
+/// The embedded towns by name (their `map name=`), the default first.
+pub const EMBEDDED_TOWNS: [(&str, &str); 2] = [("default_town", DEFAULT_TOWN), ("held_out_town", HELD_OUT_TOWN)];
 
 /// A built road map.
 #[derive(Debug, Clone)]
