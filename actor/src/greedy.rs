@@ -41,6 +41,17 @@ pub struct CheckpointInfo {
     pub episodes: Option<u64>,
 }
 
+impl GreedyAgent {
+    /// A network of `cfg` with the parameters of `weights` (a safetensors file, as the learner
+    /// publishes and checkpoints them), on `threads` threads.
+    pub fn from_weights(cfg: RunConfig, weights: &[u8], threads: usize, source: CheckpointInfo) -> Result<Self> {
+        let mut net = Inference::new(cfg.net_shape(), cfg.agent.seed, threads);
+        net.load(weights).context("the weights do not fit the run's network")?;
+        let actions = cfg.agent.action_set.actions();
+        Ok(Self { cfg, net, actions, source })
+    }
+}
+
 /// Loads a checkpoint given as a run directory, a checkpoint directory or its weights file. The
 /// files the checkpoint's manifest lists are checked against it.
 pub fn load_checkpoint(path: &Path) -> Result<GreedyAgent> {

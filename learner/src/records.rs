@@ -13,6 +13,38 @@ pub const EPISODES_FILE: &str = "episodes.jsonl";
 /// The file of periodic training reports in a run directory.
 pub const TRAIN_FILE: &str = "train.jsonl";
 
+/// The file of periodic greedy evaluations in a run directory (written by `actor train`).
+pub const EVAL_FILE: &str = "eval.jsonl";
+
+/// One greedy evaluation of the learner's weights during training: a line of `eval.jsonl`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct EvalRecord {
+    /// Seconds since the run started (summed over resumes), when the weights were taken.
+    pub time_secs: f64,
+    pub env_steps: u64,
+    pub learner_step: u64,
+    pub weights_version: u64,
+    /// The town driven (`default_town`, `held_out_town`).
+    pub town: String,
+    /// Runs per route.
+    pub runs: u32,
+    /// Route types completed in at least half of their runs (of 7).
+    pub route_types_mastered: u32,
+    /// Mean over routes of the mean return.
+    pub mean_return: f64,
+    /// Completed runs over all runs.
+    pub completion_rate: f64,
+    pub routes: Vec<EvalRouteRecord>,
+}
+
+/// One route of an [`EvalRecord`].
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct EvalRouteRecord {
+    pub route: String,
+    pub completed: u32,
+    pub mean_return: f64,
+}
+
 /// One finished training episode: a line of `episodes.jsonl`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct EpisodeRecord {
@@ -68,6 +100,11 @@ pub enum RecordsError {
 
 /// Reads `episodes.jsonl`. See [`read_jsonl`] for how bad lines are handled.
 pub fn read_episodes(path: &Path) -> Result<Vec<EpisodeRecord>, RecordsError> {
+    read_jsonl(path)
+}
+
+/// Reads `eval.jsonl`. See [`read_jsonl`] for how bad lines are handled.
+pub fn read_eval(path: &Path) -> Result<Vec<EvalRecord>, RecordsError> {
     read_jsonl(path)
 }
 

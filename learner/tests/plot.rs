@@ -251,3 +251,38 @@ fn bad_options_and_outputs_are_errors() {
     let err = plot_runs(&runs, &tmp.path().join("no-such-dir/out.png"), &PlotOptions::default()).unwrap_err();
     assert!(matches!(&err, PlotError::Draw { .. }) && err.to_string().contains("no-such-dir"), "{err:?}");
 }
+
+#[test]
+fn periodic_evaluations_get_a_panel_and_give_the_time_to_competence() {
+    use learner::records::{EvalRecord, EvalRouteRecord};
+    let tmp = tempfile::tempdir().unwrap();
+    let run = tmp.path().join("hybrid");
+    synthetic_run(&run, 300, 40.0, 5);
+    let eval = |minutes: f64, mastered: u32| EvalRecord {
+        time_secs: minutes * 60.0,
+        env_steps: (minutes * 1000.0) as u64,
+        learner_step: (minutes * 10.0) as u64,
+        weights_version: 1,
+        town: "default_town".into(),
+        runs: 2,
+        route_types_mastered: mastered,
+        mean_return: f64::from(mastered) * 10.0,
+        completion_rate: f64::from(mastered) / 7.0,
+        routes: vec![EvalRouteRecord { route: "straight_urban".into(), completed: 2, mean_return: 50.0 }],
+    };
+    write_jsonl(&run.join("eval.jsonl"), &[eval(2.0, 1), eval(4.0, 4), eval(6.0, 5), eval(8.0, 7)]);
+    let out = tmp.path().join("curves.png");
+    let summary = plot_runs(&[run.clone()], &out, &PlotOptions::default()).unwrap();
+    assert_eq!(summary.runs[0].eval_points, 4);
+    assert_eq!(summary.runs[0].minutes_to_competence, Some(6.0));
+    // The same run without evaluations: three panels, no time to competence.
+    fs::remove_file(run.join("eval.jsonl")).unwrap();
+    let without = plot_runs(&[run], &tmp.path().join("plain.png"), &PlotOptions::default()).unwrap();
+    assert_eq!((without.runs[0].eval_points, without.runs[0].minutes_to_competence), (0, None));
+    // The panel is drawn: the run's colour appears in the bottom quarter only with evaluations.
+    let bottom_colour_pixels = |path: &Path| {
+        let (w, h, px) = decode_png(path);
+        px[(w * h * 3 / 4) as usize..].iter().filter(|p| p.iter().max().unwrap() - p.iter().min().unwrap() > 40).count()
+    };
+    assert!(bottom_colour_pixels(&out) > bottom_colour_pixels(&tmp.path().join("plain.png")) + 100);
+}

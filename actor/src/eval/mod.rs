@@ -17,8 +17,9 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result, bail};
 use clap::Args;
 
-mod report;
-mod run;
+pub mod periodic;
+pub mod report;
+pub mod run;
 
 use crate::greedy::{EPSILON, GreedyAgent, load_checkpoint};
 use crate::routes::{parse_routes, town_by_name_or_file};

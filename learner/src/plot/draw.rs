@@ -10,7 +10,7 @@ use plotters::coord::ranged1d::{AsRangedCoord, DefaultFormatting, KeyPointHint, 
 use plotters::prelude::*;
 
 use super::error::PlotError;
-use super::series::{Series, bounds};
+use super::series::{Curves, Series, bounds};
 
 /// Line colours of the runs, in order (cycled past ten runs).
 pub(super) const COLOURS: [RGBColor; 10] = [
@@ -51,19 +51,16 @@ impl TextSizes {
 }
 
 /// Draws the three panels and writes the PNG; errors as text.
-pub(super) fn draw(
-    out: &Path,
-    (width, height): (u32, u32),
-    smoothing: usize,
-    return_bounds: Option<(f64, f64)>,
-    reward: &[Series],
-    loss: &[Series],
-    mean_q: &[Series],
-) -> Result<(), String> {
+pub(super) fn draw(out: &Path, (width, height): (u32, u32), smoothing: usize, curves: &Curves) -> Result<(), String> {
+    let Curves { reward, return_bounds, loss, mean_q, evals } = curves;
+    let return_bounds = *return_bounds;
     let root = BitMapBackend::new(out, (width, height)).into_drawing_area();
     root.fill(&WHITE).map_err(|e| e.to_string())?;
-    let panels = root.split_evenly((3, 1));
-    let sizes = TextSizes::for_panel(height / 3);
+    // A fourth panel when any run has periodic greedy evaluations.
+    let with_eval = evals.iter().any(|s| !s.points.is_empty());
+    let rows = if with_eval { 4 } else { 3 };
+    let panels = root.split_evenly((rows, 1));
+    let sizes = TextSizes::for_panel(height / rows as u32);
 
     let x_episodes = x_range(reward);
     let episode_desc = match return_bounds {
@@ -103,6 +100,16 @@ pub(super) fn draw(
     let q_bounds = bounds(mean_q.iter().flat_map(|s| s.points.iter().map(|p| p.1)));
     let panel = Panel { title: "Mean Q", x_desc: "learner step", y_desc: "mean Q", sizes: &sizes };
     panel.draw(&panels[2], x_range(mean_q), padded(q_bounds), mean_q, &|v| fmt_value(*v)).map_err(|e| e.to_string())?;
+
+    if with_eval {
+        let panel = Panel {
+            title: "Greedy evaluation: route types completed in at least half their runs",
+            x_desc: "minutes of training",
+            y_desc: "route types (of 7)",
+            sizes: &sizes,
+        };
+        panel.draw(&panels[3], x_range(evals), -0.2..7.2, evals, &|v| fmt_value(*v)).map_err(|e| e.to_string())?;
+    }
 
     root.present().map_err(|e| e.to_string())
 }

@@ -16,7 +16,7 @@ use std::path::{Path, PathBuf};
 use crate::records::TrainRecord;
 use draw::{COLOURS, draw, register_font};
 pub use error::PlotError;
-use series::{Series, bounds, disambiguate_names, effective_window, moving_average, normalise, read_run};
+use series::{Curves, Series, bounds, disambiguate_names, effective_window, moving_average, normalise, read_run};
 
 /// Options of a plot.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -53,7 +53,15 @@ pub struct RunSummary {
     pub train_points: usize,
     /// The last point of the smoothed return curve (not normalised); `None` with no episodes.
     pub final_smoothed_return: Option<f64>,
+    /// Periodic greedy evaluations read from `eval.jsonl` (0 if the run has none).
+    pub eval_points: usize,
+    /// Minutes of training until a greedy evaluation first mastered at least
+    /// [`COMPETENT_ROUTE_TYPES`] route types; `None` if none did.
+    pub minutes_to_competence: Option<f64>,
 }
+
+/// Route types (of 7) a greedy evaluation must master for the agent to count as competent.
+pub const COMPETENT_ROUTE_TYPES: u32 = 5;
 
 /// Reads the metrics of each run directory and draws a PNG at `out` with three panels stacked
 /// vertically:
@@ -89,6 +97,7 @@ pub fn plot_runs(run_dirs: &[PathBuf], out: &Path, opts: &PlotOptions) -> Result
     let mut reward = Vec::with_capacity(runs.len());
     let mut loss = Vec::with_capacity(runs.len());
     let mut mean_q = Vec::with_capacity(runs.len());
+    let mut evals = Vec::with_capacity(runs.len());
     for (i, run) in runs.iter().enumerate() {
         let colour = COLOURS[i % COLOURS.len()];
         let window = effective_window(opts.smoothing, run.episodes.len());
@@ -110,6 +119,13 @@ pub fn plot_runs(run_dirs: &[PathBuf], out: &Path, opts: &PlotOptions) -> Result
             episodes: run.episodes.len(),
             train_points: run.train.len(),
             final_smoothed_return: smoothed.last().copied(),
+            eval_points: run.eval.len(),
+            minutes_to_competence: run.eval.iter().find(|e| e.route_types_mastered >= COMPETENT_ROUTE_TYPES).map(|e| e.time_secs / 60.0),
+        });
+        evals.push(Series {
+            label: run.name.clone(),
+            colour,
+            points: run.eval.iter().map(|e| (e.time_secs / 60.0, f64::from(e.route_types_mastered))).collect(),
         });
         reward.push(Series { label, colour, points });
         let train_series = |f: fn(&TrainRecord) -> Option<f64>| Series {
@@ -131,7 +147,8 @@ pub fn plot_runs(run_dirs: &[PathBuf], out: &Path, opts: &PlotOptions) -> Result
         }
     }
 
-    draw(out, (opts.width, opts.height), opts.smoothing, return_bounds, &reward, &loss, &mean_q)
+    let curves = Curves { reward, return_bounds, loss, mean_q, evals };
+    draw(out, (opts.width, opts.height), opts.smoothing, &curves)
         .map_err(|message| PlotError::Draw { path: out.to_path_buf(), message })?;
     Ok(PlotSummary { runs: summaries })
 }

@@ -7,13 +7,15 @@ use std::path::Path;
 use plotters::style::RGBColor;
 
 use super::error::PlotError;
-use crate::records::{EPISODES_FILE, EpisodeRecord, TRAIN_FILE, TrainRecord, read_episodes, read_train};
+use crate::records::{EPISODES_FILE, EVAL_FILE, EpisodeRecord, EvalRecord, TRAIN_FILE, TrainRecord, read_episodes, read_eval, read_train};
 
 /// One run's data, read.
 pub(super) struct Run {
     pub(super) name: String,
     pub(super) episodes: Vec<EpisodeRecord>,
     pub(super) train: Vec<TrainRecord>,
+    /// Periodic greedy evaluations (`eval.jsonl`, empty when the run has none).
+    pub(super) eval: Vec<EvalRecord>,
 }
 
 pub(super) fn read_run(dir: &Path) -> Result<Run, PlotError> {
@@ -28,7 +30,10 @@ pub(super) fn read_run(dir: &Path) -> Result<Run, PlotError> {
     let train_path = dir.join(TRAIN_FILE);
     let mut train = if train_path.exists() { read_train(&train_path)? } else { Vec::new() };
     train.sort_by_key(|t| t.learner_step);
-    Ok(Run { name: run_name(dir), episodes, train })
+    let eval_path = dir.join(EVAL_FILE);
+    let mut eval = if eval_path.exists() { read_eval(&eval_path)? } else { Vec::new() };
+    eval.sort_by(|a, b| a.time_secs.total_cmp(&b.time_secs));
+    Ok(Run { name: run_name(dir), episodes, train, eval })
 }
 
 /// The run directory's final path component (of its canonical path for `.` and the like).
@@ -79,6 +84,17 @@ pub(super) fn normalise(v: f64, min: f64, max: f64) -> f64 {
     if max > min { (v - min) / (max - min) } else { 0.5 }
 }
 
+/// Every curve of a plot, one series per run in each panel.
+pub(super) struct Curves {
+    /// Smoothed returns, normalised over all runs, and the bounds they were normalised with.
+    pub(super) reward: Vec<Series>,
+    pub(super) return_bounds: Option<(f64, f64)>,
+    pub(super) loss: Vec<Series>,
+    pub(super) mean_q: Vec<Series>,
+    /// Route types mastered by periodic greedy evaluations, against minutes.
+    pub(super) evals: Vec<Series>,
+}
+
 pub(super) struct Series {
     pub(super) label: String,
     pub(super) colour: RGBColor,
@@ -126,7 +142,7 @@ mod tests {
 
     #[test]
     fn duplicate_names_are_numbered() {
-        let run = |name: &str| Run { name: name.into(), episodes: Vec::new(), train: Vec::new() };
+        let run = |name: &str| Run { name: name.into(), episodes: Vec::new(), train: Vec::new(), eval: Vec::new() };
         let mut runs = vec![run("a"), run("b"), run("a"), run("a")];
         disambiguate_names(&mut runs);
         let names: Vec<_> = runs.iter().map(|r| r.name.as_str()).collect();
