@@ -272,7 +272,7 @@ fn periodic_evaluations_get_a_panel_and_give_the_time_to_competence() {
     };
     write_jsonl(&run.join("eval.jsonl"), &[eval(2.0, 1), eval(4.0, 4), eval(6.0, 5), eval(8.0, 7)]);
     let out = tmp.path().join("curves.png");
-    let summary = plot_runs(&[run.clone()], &out, &PlotOptions::default()).unwrap();
+    let summary = plot_runs(std::slice::from_ref(&run), &out, &PlotOptions::default()).unwrap();
     assert_eq!(summary.runs[0].eval_points, 4);
     assert_eq!(summary.runs[0].minutes_to_competence, Some(6.0));
     // The same run without evaluations: three panels, no time to competence.
