@@ -11,17 +11,21 @@ use std::time::{Duration, Instant};
 use agent::config::RunConfig;
 use anyhow::{Context, Result};
 use clap::Args;
+use learner::records::{EvalRecord, EvalRouteRecord};
 use learner::serve::{ServeOptions, start};
+
+use crate::eval::periodic::{evaluate_weights, route_types_mastered};
 
 #[derive(Debug, Args)]
 pub struct TrainArgs {
-    /// Run configuration (TOML; see `learner config`). Defaults when omitted.
+    /// Run configuration (TOML; see `learner config`). Without it and without --preset, the
+    /// `hybrid-tuned` preset (the configuration that learns fastest on a CPU).
     #[arg(long, conflicts_with = "preset")]
     pub config: Option<PathBuf>,
-    /// Start from a named configuration instead: `paper` (the paper's hybrid agent),
-    /// `end-to-end` (its baseline without d), or `hybrid-tuned` / `end-to-end-tuned` (both tuned
-    /// for a short CPU budget; see `learner config --help`). A file can do the same with
-    /// `preset = "NAME"`.
+    /// Start from a named configuration instead: `hybrid-tuned` (the default: the paper's hybrid
+    /// agent tuned for a short CPU budget), `paper` (the paper's hybrid agent as published),
+    /// `end-to-end` (its baseline without d) or `end-to-end-tuned` (see `learner config --help`).
+    /// A file can do the same with `preset = "NAME"`.
     #[arg(long, value_name = "NAME")]
     pub preset: Option<String>,
     /// Seed of the network initialisation and replay sampling (`agent.seed`) and of the actors'
@@ -42,11 +46,21 @@ pub struct TrainArgs {
     /// Environments per actor.
     #[arg(long, default_value_t = 4)]
     pub envs: usize,
+    /// Minutes between greedy evaluations of the current weights on the seven routes (ε = 0,
+    /// written to RUN_DIR/eval.jsonl and drawn by `learner plot`); 0 turns them off.
+    #[arg(long, default_value_t = 2.0, value_name = "MINUTES")]
+    pub eval_every: f64,
+    /// Runs per route of each periodic evaluation (fixed seeds, the same every time).
+    #[arg(long, default_value_t = 2)]
+    pub eval_runs: u32,
 }
 
 pub async fn run(args: &TrainArgs) -> Result<()> {
     if args.actors == 0 || args.actors > 64 {
         anyhow::bail!("--actors {} must be 1..=64", args.actors);
+    }
+    if !(args.eval_every.is_finite() && args.eval_every >= 0.0) || args.eval_runs == 0 {
+        anyhow::bail!("--eval-every {} must be >= 0 minutes and --eval-runs {} at least 1", args.eval_every, args.eval_runs);
     }
     if let Some(m) = args.max_minutes
         && !(m.is_finite() && m > 0.0)
@@ -131,6 +145,10 @@ pub async fn run(args: &TrainArgs) -> Result<()> {
         }
     });
 
+    let evaluations = (args.eval_every > 0.0).then(|| {
+        tokio::spawn(periodic_evaluation(running.shared.clone(), Duration::from_secs_f64(args.eval_every * 60.0), args.eval_runs))
+    });
+
     let shared = running.shared.clone();
     let budget_spent = async move {
         match budget_secs {
@@ -147,6 +165,9 @@ pub async fn run(args: &TrainArgs) -> Result<()> {
         () = budget_spent => eprintln!("time budget of {:.1} min spent", args.max_minutes.unwrap_or_default()),
     }
     progress.abort();
+    if let Some(e) = evaluations {
+        e.abort();
+    }
     eprintln!("stopping: actors flush, the learner writes a checkpoint…");
     // Actors in the terminal's process group got the Ctrl-C too; make sure of it for SIGTERM.
     for c in &children {
@@ -174,13 +195,76 @@ pub async fn run(args: &TrainArgs) -> Result<()> {
     Ok(())
 }
 
+/// Every `every`, drives the learner's current weights greedily on the default town's seven routes
+/// (`runs` runs each, fixed seeds) and records the result in `eval.jsonl`; until aborted.
+async fn periodic_evaluation(shared: std::sync::Arc<learner::state::Shared>, every: Duration, runs: u32) {
+    /// Seeds of the periodic evaluations: apart from `actor eval`'s default 0.., the same each time.
+    const SEED: u64 = 10_000;
+    loop {
+        tokio::time::sleep(every).await;
+        let (weights, learner_step, env_steps) = {
+            let c = shared.counters.lock().expect("counters lock");
+            (shared.current_weights(), c.learner_step, c.env_steps)
+        };
+        if learner_step == 0 {
+            continue;
+        }
+        let (cfg, bytes, time_secs) = (shared.cfg.clone(), weights.bytes.clone(), shared.run_secs());
+        let done = tokio::task::spawn_blocking(move || evaluate_weights(&cfg, &bytes, "default_town", runs, SEED)).await;
+        let report = match done {
+            Ok(Ok(report)) => report,
+            Ok(Err(e)) => {
+                tracing::warn!("periodic evaluation failed: {e:#}");
+                continue;
+            }
+            Err(_) => return,
+        };
+        let Some(a) = report.agents.first() else { continue };
+        let total_runs: u32 = a.routes.iter().map(|r| r.runs).sum();
+        let record = EvalRecord {
+            time_secs,
+            env_steps,
+            learner_step,
+            weights_version: weights.version,
+            town: report.town.clone(),
+            runs,
+            route_types_mastered: route_types_mastered(&report) as u32,
+            mean_return: a.mean_return,
+            completion_rate: f64::from(a.routes.iter().map(|r| r.completed).sum::<u32>()) / f64::from(total_runs.max(1)),
+            routes: a
+                .routes
+                .iter()
+                .map(|r| EvalRouteRecord { route: r.route.into(), completed: r.completed, mean_return: r.mean_return })
+                .collect(),
+        };
+        eprintln!(
+            "[eval {:>5.1} min] greedy on the 7 routes ({runs} runs each): {}/7 route types completed in at least half their runs, {:.0}% of runs, mean return {:.1}",
+            time_secs / 60.0,
+            record.route_types_mastered,
+            100.0 * record.completion_rate,
+            record.mean_return
+        );
+        if let Err(e) = shared.metrics.eval(&record) {
+            tracing::warn!("writing eval.jsonl: {e}");
+        }
+    }
+}
+
+/// The preset of `actor train` without --config or --preset: the configuration that learns fastest
+/// on a CPU (docs/RESULTS.md); the paper's own is `--preset paper`.
+const DEFAULT_PRESET: &str = "hybrid-tuned";
+
 /// The configuration file to start a new run with: `--config` as given, or — when `--preset` or
 /// `--seed` ask for more — the effective configuration written to `RUN_DIR/requested-config.toml`.
 fn requested_config(args: &TrainArgs) -> Result<Option<PathBuf>> {
-    if args.preset.is_none() && args.seed.is_none() {
+    if args.config.is_some() && args.seed.is_none() {
         return Ok(args.config.clone());
     }
-    let mut cfg = match (&args.preset, &args.config) {
+    let preset = args.preset.clone().or_else(|| args.config.is_none().then(|| DEFAULT_PRESET.to_owned()));
+    if args.preset.is_none() && args.config.is_none() {
+        eprintln!("a new run with the `{DEFAULT_PRESET}` preset (the default; `--preset paper` trains the paper's configuration)");
+    }
+    let mut cfg = match (&preset, &args.config) {
         (Some(name), _) => RunConfig::preset(name).map_err(|e| anyhow::anyhow!("--preset: {e}"))?,
         (None, Some(path)) => RunConfig::load(path)?,
         (None, None) => RunConfig::default(),
