@@ -5,6 +5,7 @@
 //! thread pool with the GIL released and returns batched NumPy arrays. No simulator logic lives
 //! here or in Python: episodes, rewards, rendering and routes are `sim_core::env::Env`'s.
 
+mod bench;
 mod config;
 mod convert;
 mod reference;
@@ -46,6 +47,7 @@ fn core_module(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<single::Sim>()?;
     m.add_class::<vector::VecSim>()?;
     m.add_function(wrap_pyfunction!(reference::reference_rollout, m)?)?;
+    m.add_function(wrap_pyfunction!(bench::rust_loop, m)?)?;
     m.add("ROUTES", config::route_names())?;
     m.add("COLLISION_KINDS", convert::COLLISION_KINDS.to_vec())?;
     Ok(())

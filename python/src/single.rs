@@ -1,5 +1,7 @@
 //! `Sim`: one environment for `hybrid_drive.HybridDriveEnv`. Steps run with the GIL released.
 
+use std::time::{Duration, Instant};
+
 use numpy::PyArray3;
 use pyo3::IntoPyObjectExt;
 use pyo3::prelude::*;
@@ -16,6 +18,10 @@ use crate::{action_index, env_error};
 pub struct Sim {
     cfg: Py<SimConfig>,
     slot: Slot,
+    /// Time spent in `reset` and `step` calls, and in the simulator within them (for the
+    /// benchmark's profile).
+    time_in_calls: Duration,
+    time_in_sim: Duration,
 }
 
 #[pymethods]
@@ -25,33 +31,41 @@ impl Sim {
     fn new(py: Python<'_>, cfg: Py<SimConfig>, seed: u64) -> PyResult<Self> {
         let c = cfg.get();
         let slot = py.detach(|| Slot::new(c, seed)).map_err(env_error)?;
-        Ok(Self { cfg, slot })
+        Ok(Self { cfg, slot, time_in_calls: Duration::ZERO, time_in_sim: Duration::ZERO })
     }
 
     /// Starts an episode (with `seed`, or the next seed of the stream the last seed started) on
     /// the current route, or on `route` from now on. Returns `(observation, info)`.
     #[pyo3(signature = (seed=None, route=None))]
     fn reset<'py>(&mut self, py: Python<'py>, seed: Option<u64>, route: Option<&str>) -> PyResult<Bound<'py, PyTuple>> {
+        let start = Instant::now();
         let cfg = self.cfg.get();
         if let Some(name) = route {
             (self.slot.route, self.slot.scenario) = cfg.scenario_named(name)?;
         }
         let slot = &mut self.slot;
+        let sim = Instant::now();
         let obs = py.detach(|| slot.reset(seed)).map_err(env_error)?;
+        self.time_in_sim += sim.elapsed();
         let obs = convert::observation(py, cfg, obs)?;
         let info = convert::info(py, self.slot.env.info(), self.slot.route, self.slot.episode_seed())?;
+        self.time_in_calls += start.elapsed();
         PyTuple::new(py, [obs.into_any(), info.into_any()])
     }
 
     /// One step under the action with index `action`: `(observation, reward, terminated,
     /// truncated, info)`.
     fn step<'py>(&mut self, py: Python<'py>, action: &Bound<'py, PyAny>) -> PyResult<Bound<'py, PyTuple>> {
+        let start = Instant::now();
         let cfg = self.cfg.get();
         let a: Action = cfg.actions[action_index(action, cfg.actions.len())?];
         let slot = &mut self.slot;
+        let sim = Instant::now();
         let r = py.detach(|| slot.step(a)).map_err(env_error)?;
+        self.time_in_sim += sim.elapsed();
         let info = convert::info(py, &r.info, self.slot.route, self.slot.episode_seed())?;
         let obs = convert::observation(py, cfg, r.observation)?;
+        self.time_in_calls += start.elapsed();
         PyTuple::new(
             py,
             [
@@ -69,6 +83,12 @@ impl Sim {
         let view = &self.cfg.get().birdseye;
         let env = &mut self.slot.env;
         image_array(py, py.detach(|| env.birdseye(view)))
+    }
+
+    /// Seconds spent inside `reset` and `step` so far, and in the simulator within them:
+    /// `(in_calls, in_sim)`.
+    fn timings(&self) -> (f64, f64) {
+        (self.time_in_calls.as_secs_f64(), self.time_in_sim.as_secs_f64())
     }
 
     /// A hash of the whole dynamic state (ego, traffic, route progress): equal after the same seed

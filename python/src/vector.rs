@@ -6,6 +6,8 @@
 //! observation; the next `step` resets that environment (its action is ignored) and returns the new
 //! episode's first observation with reward 0 and neither terminated nor truncated.
 
+use std::time::{Duration, Instant};
+
 use numpy::ndarray::{Array2, Array4};
 use numpy::{Element, PyArray, PyArray1, PyReadonlyArray1};
 use pyo3::exceptions::PyValueError;
@@ -29,6 +31,10 @@ pub struct VecSim {
     /// `None` steps on the calling thread (one thread asked for, or one environment).
     pool: Option<ThreadPool>,
     threads: usize,
+    /// Time spent in `reset` and `step` calls, and in their parallel part (for the benchmark's
+    /// profile).
+    time_in_calls: Duration,
+    time_in_threads: Duration,
 }
 
 /// What one environment contributes to a batch, besides its camera image.
@@ -96,7 +102,7 @@ impl VecSim {
                 None => (0..num_envs).map(make).collect(),
             })
             .map_err(env_error)?;
-        Ok(Self { cfg, slots, pool, threads })
+        Ok(Self { cfg, slots, pool, threads, time_in_calls: Duration::ZERO, time_in_threads: Duration::ZERO })
     }
 
     #[getter]
@@ -113,6 +119,7 @@ impl VecSim {
     /// seed of its stream; on `route` from now on if given. Returns `(observations, infos)`.
     #[pyo3(signature = (seeds=None, route=None))]
     fn reset<'py>(&mut self, py: Python<'py>, seeds: Option<Vec<u64>>, route: Option<&str>) -> PyResult<Bound<'py, PyTuple>> {
+        let start = Instant::now();
         let n = self.slots.len();
         if let Some(s) = &seeds
             && s.len() != n
@@ -131,6 +138,7 @@ impl VecSim {
         })?;
         let obs = self.observations(py, camera, &rows)?;
         let info = infos(py, &rows)?;
+        self.time_in_calls += start.elapsed();
         PyTuple::new(py, [obs.into_any(), info.into_any()])
     }
 
@@ -138,6 +146,7 @@ impl VecSim {
     /// if its episode ended at the previous step. Returns `(observations, rewards, terminated,
     /// truncated, infos)`.
     fn step<'py>(&mut self, py: Python<'py>, actions: PyReadonlyArray1<'py, i64>) -> PyResult<Bound<'py, PyTuple>> {
+        let start = Instant::now();
         let cfg = self.cfg.get();
         let actions = actions.as_slice()?;
         let n = self.slots.len();
@@ -163,6 +172,7 @@ impl VecSim {
         let terminated = column(py, &rows, |r| r.terminated);
         let truncated = column(py, &rows, |r| r.truncated);
         let info = infos(py, &rows)?;
+        self.time_in_calls += start.elapsed();
         PyTuple::new(py, [obs.into_any(), rewards.into_any(), terminated.into_any(), truncated.into_any(), info.into_any()])
     }
 
@@ -172,6 +182,12 @@ impl VecSim {
         let slots = &mut self.slots;
         let images = py.detach(|| slots.iter_mut().map(|s| s.env.birdseye(view)).collect::<Vec<_>>());
         PyTuple::new(py, images.into_iter().map(|image| image_array(py, image)))
+    }
+
+    /// Seconds spent inside `reset` and `step` so far, and in their parallel part (stepping,
+    /// resetting and rendering the environments on the threads): `(in_calls, in_threads)`.
+    fn timings(&self) -> (f64, f64) {
+        (self.time_in_calls.as_secs_f64(), self.time_in_threads.as_secs_f64())
     }
 
     /// Each environment's `state_hash` (see `Sim.state_hash`).
@@ -196,6 +212,7 @@ impl VecSim {
         let mut camera = vec![0u8; n * frame];
         let slots = &mut self.slots;
         let pool = &self.pool;
+        let start = Instant::now();
         let rows = py.detach(|| {
             let frames: Vec<&mut [u8]> =
                 if frame == 0 { (0..n).map(|_| <&mut [u8]>::default()).collect() } else { camera.chunks_mut(frame).collect() };
@@ -206,6 +223,7 @@ impl VecSim {
                 None => slots.iter_mut().zip(frames).enumerate().map(|(i, (slot, fr))| f(i, slot, fr)).collect(),
             }
         });
+        self.time_in_threads += start.elapsed();
         Ok((camera, rows.map_err(env_error)?))
     }
 
