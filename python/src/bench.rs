@@ -9,7 +9,7 @@ use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 
 use crate::config::SimConfig;
-use crate::env_error;
+use crate::errors::env_error;
 use crate::slot::Slot;
 
 /// Steps a new environment of `cfg` (reset with `seed`) under the action indices `actions`,

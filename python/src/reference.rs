@@ -7,7 +7,7 @@ use pyo3::types::PyBytes;
 use sim_core::env::Env;
 
 use crate::config::SimConfig;
-use crate::env_error;
+use crate::errors::env_error;
 
 /// One step as the simulator reports it.
 type ReferenceStep<'py> = (f32, f32, f32, f32, bool, bool, u64, Bound<'py, PyBytes>);

@@ -10,8 +10,8 @@ use sim_core::vehicle::Action;
 
 use crate::config::SimConfig;
 use crate::convert::{self, image_array};
+use crate::errors::{action_index, env_error};
 use crate::slot::Slot;
-use crate::{action_index, env_error};
 
 #[pyclass(module = "hybrid_drive._core")]
 #[derive(Debug)]

@@ -20,7 +20,7 @@ use sim_core::env::{EnvError, Observation, PATH_FEATURES, StepInfo};
 
 use crate::config::SimConfig;
 use crate::convert::{collision_code, image_array};
-use crate::env_error;
+use crate::errors::env_error;
 use crate::slot::Slot;
 
 #[pyclass(module = "hybrid_drive._core")]
