@@ -9,6 +9,10 @@ Not run in CI (it needs PyTorch). Setup, from the repository root:
     pip install "stable-baselines3>=2.3"
     python python/examples/sb3_dqn.py --minutes 5
 
+It prints training progress every 15 s, then the greedy return on each of the seven routes. Five
+minutes on two CPU cores is a smoke test of the pipeline, not a trained driver: PyTorch's updates,
+not the simulator, set the pace (``actor train`` is the fast path, see the README).
+
 The policy is SB3's ``MultiInputPolicy``: its NatureCNN reads the camera, the speed and d are
 concatenated to the image features, and two fully connected layers of 256 give one Q value per
 action, the paper's network shape. The environment runs in Rust at tens of thousands of steps per
@@ -19,6 +23,7 @@ ratio).
 from __future__ import annotations
 
 import argparse
+import os
 import time
 
 import gymnasium
@@ -27,6 +32,7 @@ import numpy as np
 import hybrid_drive
 
 try:
+    import torch
     from stable_baselines3 import DQN
     from stable_baselines3.common.callbacks import BaseCallback
 except ImportError as e:  # pragma: no cover - the example's only extra dependency
@@ -89,13 +95,16 @@ def evaluate(model: DQN, runs: int, seed: int, kwargs: dict) -> None:
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--minutes", type=float, default=5.0, help="training budget (default 5)")
-    p.add_argument("--camera", type=int, nargs=2, default=(84, 84), metavar=("W", "H"))
+    p.add_argument("--steps", type=int, default=50_000, help="step budget, whichever ends first (default 50000)")
+    p.add_argument("--explore-steps", type=int, default=10_000, help="steps over which epsilon falls to 0.05")
+    p.add_argument("--camera", type=int, nargs=2, default=(48, 48), metavar=("W", "H"), help="default 48 48 (the hybrid-tuned preset's)")
     p.add_argument("--variant", choices=["hybrid", "end_to_end"], default="hybrid")
     p.add_argument("--seed", type=int, default=1)
     p.add_argument("--runs", type=int, default=3, help="evaluation runs per route (default 3)")
     p.add_argument("--save", default=None, help="save the model to this .zip")
     args = p.parse_args()
 
+    torch.set_num_threads(os.cpu_count() or 1)
     kwargs = {"camera": tuple(args.camera), "variant": args.variant}
     env = gymnasium.make("HybridDrive-v0", **kwargs)
     env.reset(seed=args.seed)
@@ -103,20 +112,20 @@ def main() -> None:
         "MultiInputPolicy",
         env,
         learning_rate=2.5e-4,
-        buffer_size=20_000,  # two 84×84 frames per transition: ~280 MB
+        buffer_size=20_000,  # two frames per transition: ~90 MB at 48×48, ~280 MB at 84×84
         learning_starts=1_000,
         batch_size=32,
         gamma=0.99,
         train_freq=4,
         target_update_interval=1_000,
-        exploration_fraction=0.3,
+        exploration_fraction=min(1.0, args.explore_steps / args.steps),
         exploration_final_eps=0.05,
         policy_kwargs={"net_arch": [256, 256]},
         seed=args.seed,
         verbose=0,
     )
     budget = TimeBudget(args.minutes * 60.0)
-    model.learn(total_timesteps=10**9, callback=budget)
+    model.learn(total_timesteps=args.steps, callback=budget)
     elapsed = time.monotonic() - budget.start
     print(f"trained {model.num_timesteps} steps in {elapsed:.0f} s ({model.num_timesteps / elapsed:.0f} steps/s with updates)")
     if args.save:

@@ -86,6 +86,10 @@ class HybridDriveVectorEnv(VectorEnv):
             return self._sim.render()
         return None
 
+    def close_extras(self, **kwargs: Any) -> None:
+        """Stops the stepping threads (the environment cannot be used afterwards)."""
+        self._sim = None
+
     def state_hashes(self) -> list[int]:
         """Each environment's ``HybridDriveEnv.state_hash``."""
         return self._sim.state_hashes()

@@ -9,6 +9,7 @@ mod bench;
 mod config;
 mod convert;
 mod errors;
+mod pool;
 mod reference;
 mod single;
 mod slot;

@@ -1,6 +1,7 @@
-//! `VecSim`: N environments stepped together on a thread pool with the GIL released, for
-//! `hybrid_drive.HybridDriveVectorEnv`. Each call returns batched NumPy arrays; the cameras render
-//! into one (N, H, W, C) buffer that NumPy then owns, with no per-environment Python object.
+//! `VecSim`: N environments stepped together on threads (`pool::Stepper`) with the GIL released,
+//! for `hybrid_drive.HybridDriveVectorEnv`. Each call returns batched NumPy arrays: the cameras
+//! are copied once into one (N, H, W, C) buffer that NumPy then owns, with no per-environment
+//! Python object.
 //!
 //! Auto-reset follows Gymnasium's `NEXT_STEP` mode: the step that ends an episode returns its last
 //! observation; the next `step` resets that environment (its action is ignored) and returns the new
@@ -10,68 +11,35 @@ use std::time::{Duration, Instant};
 
 use numpy::ndarray::{Array2, Array4};
 use numpy::{Element, PyArray, PyArray1, PyReadonlyArray1};
-use pyo3::exceptions::PyValueError;
+use pyo3::exceptions::{PyOSError, PyRuntimeError, PyValueError};
 use pyo3::intern;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyTuple};
-use rayon::prelude::*;
-use rayon::{ThreadPool, ThreadPoolBuilder};
-use sim_core::env::{EnvError, Observation, PATH_FEATURES, StepInfo};
+use sim_core::config::Variant;
+use sim_core::env::PATH_FEATURES;
 
 use crate::config::SimConfig;
 use crate::convert::{collision_code, image_array};
 use crate::errors::env_error;
+use crate::pool::{Job, Outcome, RunError, Stepper};
 use crate::slot::Slot;
 
 #[pyclass(module = "hybrid_drive._core")]
 #[derive(Debug)]
 pub struct VecSim {
     cfg: Py<SimConfig>,
-    slots: Vec<Slot>,
-    /// `None` steps on the calling thread (one thread asked for, or one environment).
-    pool: Option<ThreadPool>,
-    threads: usize,
+    stepper: Stepper,
     /// Time spent in `reset` and `step` calls, and in their parallel part (for the benchmark's
     /// profile).
     time_in_calls: Duration,
     time_in_threads: Duration,
 }
 
-/// What one environment contributes to a batch, besides its camera image.
-#[derive(Debug)]
-struct Row {
-    speed: f32,
-    d: f32,
-    path: [f32; PATH_FEATURES],
-    reward: f32,
-    terminated: bool,
-    truncated: bool,
-    info: StepInfo,
-    seed: u64,
-}
-
-impl Row {
-    fn new(obs: Observation, frame: &mut [u8], reward: f32, terminated: bool, truncated: bool, slot: &Slot) -> Self {
-        if let Some(image) = &obs.image {
-            frame.copy_from_slice(&image.data);
-        }
-        Self {
-            speed: obs.speed,
-            d: obs.d.unwrap_or(0.0),
-            path: obs.path.unwrap_or_default(),
-            reward,
-            terminated,
-            truncated,
-            info: slot.env.info().clone(),
-            seed: slot.episode_seed(),
-        }
-    }
-}
-
 #[pymethods]
 impl VecSim {
-    /// `num_envs` environments of `cfg`, environment i reset with seed `seed + i`; `num_threads`
-    /// defaults to the machine's cores (at most one per environment).
+    /// `num_envs` environments of `cfg`, environment i reset with seed `seed + i`, stepped by
+    /// `num_threads` threads, the caller's included (default: the machine's cores, at most one
+    /// per environment).
     #[new]
     #[pyo3(signature = (cfg, num_envs, num_threads=None, seed=0))]
     fn new(py: Python<'_>, cfg: Py<SimConfig>, num_envs: usize, num_threads: Option<usize>, seed: u64) -> PyResult<Self> {
@@ -84,35 +52,22 @@ impl VecSim {
             Some(t) => t.min(num_envs),
             None => cores.min(num_envs),
         };
-        let pool = if threads > 1 {
-            let pool = ThreadPoolBuilder::new()
-                .num_threads(threads)
-                .thread_name(|i| format!("hybrid-drive-{i}"))
-                .build()
-                .map_err(|e| PyValueError::new_err(format!("starting {threads} threads: {e}")))?;
-            Some(pool)
-        } else {
-            None
-        };
         let c = cfg.get();
-        let make = |i: usize| Slot::new(c, seed.wrapping_add(i as u64));
         let slots = py
-            .detach(|| match &pool {
-                Some(pool) => pool.install(|| (0..num_envs).into_par_iter().map(make).collect::<Result<Vec<_>, _>>()),
-                None => (0..num_envs).map(make).collect(),
-            })
+            .detach(|| (0..num_envs).map(|i| Slot::new(c, seed.wrapping_add(i as u64))).collect::<Result<Vec<_>, _>>())
             .map_err(env_error)?;
-        Ok(Self { cfg, slots, pool, threads, time_in_calls: Duration::ZERO, time_in_threads: Duration::ZERO })
+        let stepper = Stepper::new(slots, threads).map_err(|e| PyOSError::new_err(format!("starting {threads} stepping threads: {e}")))?;
+        Ok(Self { cfg, stepper, time_in_calls: Duration::ZERO, time_in_threads: Duration::ZERO })
     }
 
     #[getter]
     fn num_envs(&self) -> usize {
-        self.slots.len()
+        self.stepper.len()
     }
 
     #[getter]
     fn num_threads(&self) -> usize {
-        self.threads
+        self.stepper.threads()
     }
 
     /// Resets every environment: environment i with `seeds[i]`, or without seeds with the next
@@ -120,7 +75,7 @@ impl VecSim {
     #[pyo3(signature = (seeds=None, route=None))]
     fn reset<'py>(&mut self, py: Python<'py>, seeds: Option<Vec<u64>>, route: Option<&str>) -> PyResult<Bound<'py, PyTuple>> {
         let start = Instant::now();
-        let n = self.slots.len();
+        let n = self.stepper.len();
         if let Some(s) = &seeds
             && s.len() != n
         {
@@ -128,15 +83,13 @@ impl VecSim {
         }
         if let Some(name) = route {
             let (route, scenario) = self.cfg.get().scenario_named(name)?;
-            for slot in &mut self.slots {
+            for i in 0..n {
+                let mut slot = self.stepper.slot(i);
                 (slot.route, slot.scenario) = (route, scenario);
             }
         }
-        let (camera, rows) = self.run(py, |i, slot, frame| {
-            let obs = slot.reset(seeds.as_ref().map(|s| s[i]))?;
-            Ok(Row::new(obs, frame, 0.0, false, false, slot))
-        })?;
-        let obs = self.observations(py, camera, &rows)?;
+        let rows = self.run(py, Job::Reset { seeds })?;
+        let obs = self.observations(py, &rows)?;
         let info = infos(py, &rows)?;
         self.time_in_calls += start.elapsed();
         PyTuple::new(py, [obs.into_any(), info.into_any()])
@@ -147,27 +100,19 @@ impl VecSim {
     /// truncated, infos)`.
     fn step<'py>(&mut self, py: Python<'py>, actions: PyReadonlyArray1<'py, i64>) -> PyResult<Bound<'py, PyTuple>> {
         let start = Instant::now();
-        let cfg = self.cfg.get();
+        let set = self.cfg.get().actions;
         let actions = actions.as_slice()?;
-        let n = self.slots.len();
+        let n = self.stepper.len();
         if actions.len() != n {
             return Err(PyValueError::new_err(format!("{} actions for {n} environments: give one per environment", actions.len())));
         }
-        let set = cfg.actions;
         if let Some((i, a)) = actions.iter().enumerate().find(|&(_, &a)| !(0..set.len() as i64).contains(&a)) {
             return Err(PyValueError::new_err(format!("actions[{i}] = {a} is not an action: expected 0..={}", set.len() - 1)));
         }
         // Copied while the GIL is held: Python may write to the array once it is released.
-        let actions: Vec<usize> = actions.iter().map(|&a| a as usize).collect();
-        let (camera, rows) = self.run(py, |i, slot, frame| {
-            if slot.env.is_done() {
-                let obs = slot.reset(None)?;
-                return Ok(Row::new(obs, frame, 0.0, false, false, slot));
-            }
-            let r = slot.step(set[actions[i]])?;
-            Ok(Row::new(r.observation, frame, r.reward, r.terminated, r.truncated, slot))
-        })?;
-        let obs = self.observations(py, camera, &rows)?;
+        let actions = actions.iter().map(|&a| set[a as usize]).collect();
+        let rows = self.run(py, Job::Step { actions })?;
+        let obs = self.observations(py, &rows)?;
         let rewards = column(py, &rows, |r| f64::from(r.reward));
         let terminated = column(py, &rows, |r| r.terminated);
         let truncated = column(py, &rows, |r| r.truncated);
@@ -179,8 +124,8 @@ impl VecSim {
     /// The bird's-eye view of each environment.
     fn render<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyTuple>> {
         let view = &self.cfg.get().birdseye;
-        let slots = &mut self.slots;
-        let images = py.detach(|| slots.iter_mut().map(|s| s.env.birdseye(view)).collect::<Vec<_>>());
+        let stepper = &self.stepper;
+        let images = py.detach(|| (0..stepper.len()).map(|i| stepper.slot(i).env.birdseye(view)).collect::<Vec<_>>());
         PyTuple::new(py, images.into_iter().map(|image| image_array(py, image)))
     }
 
@@ -192,76 +137,63 @@ impl VecSim {
 
     /// Each environment's `state_hash` (see `Sim.state_hash`).
     fn state_hashes(&self) -> Vec<u64> {
-        self.slots.iter().map(|s| s.env.state_hash()).collect()
+        (0..self.stepper.len()).map(|i| self.stepper.slot(i).env.state_hash()).collect()
     }
 
     fn __repr__(&self) -> String {
-        format!("VecSim(num_envs={}, num_threads={}, route={:?})", self.slots.len(), self.threads, self.cfg.get().route)
+        format!("VecSim(num_envs={}, num_threads={}, route={:?})", self.stepper.len(), self.stepper.threads(), self.cfg.get().route)
     }
 }
 
 impl VecSim {
-    /// Runs `f` on every environment (on the pool, without the GIL), each with its slice of a
-    /// fresh camera buffer. Returns the buffer and the rows in environment order.
-    fn run<F>(&mut self, py: Python<'_>, f: F) -> PyResult<(Vec<u8>, Vec<Row>)>
-    where
-        F: Fn(usize, &mut Slot, &mut [u8]) -> Result<Row, EnvError> + Send + Sync,
-    {
-        let n = self.slots.len();
-        let frame = self.frame_len();
-        let mut camera = vec![0u8; n * frame];
-        let slots = &mut self.slots;
-        let pool = &self.pool;
+    /// Runs `job` on every environment, without the GIL.
+    fn run(&mut self, py: Python<'_>, job: Job) -> PyResult<Vec<Outcome>> {
         let start = Instant::now();
-        let rows = py.detach(|| {
-            let frames: Vec<&mut [u8]> =
-                if frame == 0 { (0..n).map(|_| <&mut [u8]>::default()).collect() } else { camera.chunks_mut(frame).collect() };
-            match pool {
-                Some(pool) => pool.install(|| {
-                    slots.par_iter_mut().zip(frames).enumerate().map(|(i, (slot, fr))| f(i, slot, fr)).collect::<Result<Vec<_>, _>>()
-                }),
-                None => slots.iter_mut().zip(frames).enumerate().map(|(i, (slot, fr))| f(i, slot, fr)).collect(),
-            }
-        });
+        let stepper = &self.stepper;
+        let outcomes = py.detach(|| stepper.run(job));
         self.time_in_threads += start.elapsed();
-        Ok((camera, rows.map_err(env_error)?))
-    }
-
-    fn frame_len(&self) -> usize {
-        self.cfg.get().env.camera.as_ref().map_or(0, |c| c.width as usize * c.height as usize * usize::from(c.channels()))
+        outcomes.map_err(|e| match e {
+            RunError::Env(e) => env_error(e),
+            RunError::Panic(message) => PyRuntimeError::new_err(format!("the simulator panicked: {message}")),
+        })
     }
 
     /// The batched observation dict: `camera` (N, H, W, C), `speed` (N, 1), `d` (N, 1), `path` (N, 3).
-    fn observations<'py>(&self, py: Python<'py>, camera: Vec<u8>, rows: &[Row]) -> PyResult<Bound<'py, PyDict>> {
+    fn observations<'py>(&self, py: Python<'py>, rows: &[Outcome]) -> PyResult<Bound<'py, PyDict>> {
         let cfg = self.cfg.get();
         let n = rows.len();
         let dict = PyDict::new(py);
         if let Some(c) = &cfg.env.camera {
             let shape = (n, c.height as usize, c.width as usize, usize::from(c.channels()));
+            let mut camera = Vec::with_capacity(shape.0 * shape.1 * shape.2 * shape.3);
+            for r in rows {
+                camera.extend_from_slice(&r.observation.image.as_ref().expect("a camera is configured").data);
+            }
             let array = Array4::from_shape_vec(shape, camera).expect("one frame per environment");
             dict.set_item(intern!(py, "camera"), PyArray::from_owned_array(py, array))?;
         }
         let matrix = |width: usize, values: Vec<f32>| {
             PyArray::from_owned_array(py, Array2::from_shape_vec((n, width), values).expect("width values per environment"))
         };
-        dict.set_item(intern!(py, "speed"), matrix(1, rows.iter().map(|r| r.speed).collect()))?;
-        if cfg.env.variant == sim_core::config::Variant::Hybrid {
-            dict.set_item(intern!(py, "d"), matrix(1, rows.iter().map(|r| r.d).collect()))?;
+        dict.set_item(intern!(py, "speed"), matrix(1, rows.iter().map(|r| r.observation.speed).collect()))?;
+        if cfg.env.variant == Variant::Hybrid {
+            dict.set_item(intern!(py, "d"), matrix(1, rows.iter().map(|r| r.observation.d.unwrap_or(0.0)).collect()))?;
         }
         if cfg.path_features {
-            dict.set_item(intern!(py, "path"), matrix(PATH_FEATURES, rows.iter().flat_map(|r| r.path).collect()))?;
+            let path = rows.iter().flat_map(|r| r.observation.path.unwrap_or_default()).collect();
+            dict.set_item(intern!(py, "path"), matrix(PATH_FEATURES, path))?;
         }
         Ok(dict)
     }
 }
 
-fn column<'py, T: Element>(py: Python<'py>, rows: &[Row], f: impl Fn(&Row) -> T) -> Bound<'py, PyArray1<T>> {
+fn column<'py, T: Element>(py: Python<'py>, rows: &[Outcome], f: impl Fn(&Outcome) -> T) -> Bound<'py, PyArray1<T>> {
     PyArray1::from_iter(py, rows.iter().map(f))
 }
 
 /// The batched info dict: one array of N values per key (the single env's keys, with `collision`
 /// as an index into `COLLISION_KINDS`).
-fn infos<'py>(py: Python<'py>, rows: &[Row]) -> PyResult<Bound<'py, PyDict>> {
+fn infos<'py>(py: Python<'py>, rows: &[Outcome]) -> PyResult<Bound<'py, PyDict>> {
     let dict = PyDict::new(py);
     dict.set_item(intern!(py, "r_v"), column(py, rows, |r| r.info.reward_terms.r_v))?;
     dict.set_item(intern!(py, "r_l"), column(py, rows, |r| r.info.reward_terms.r_l))?;

@@ -125,3 +125,33 @@ def test_errors_name_the_bad_value():
         envs.step([0, 0, 0])
     with pytest.raises(ValueError, match="1 seeds for 2 environments"):
         envs.reset(seed=[1])
+
+
+def test_more_threads_than_cores_give_the_same_batches():
+    # The stepping threads claim environments in whatever order the OS runs them: the results
+    # must not depend on it. Oversubscribed on purpose (8 threads on this machine's cores).
+    actions = random_actions(150, seed=8, shape=(16,))
+    runs = []
+    for threads in (1, 8):
+        envs = hybrid_drive.make_vec(num_envs=16, num_threads=threads, camera=(16, 16))
+        assert envs.num_threads == threads
+        obs, _ = envs.reset(seed=3)
+        cameras, rewards = [obs["camera"]], []
+        for a in actions:
+            obs, r, *_ = envs.step(a)
+            cameras.append(obs["camera"])
+            rewards.append(r)
+        runs.append((np.stack(cameras), np.stack(rewards), envs.state_hashes()))
+        envs.close()
+    assert np.array_equal(runs[0][0], runs[1][0])
+    assert np.array_equal(runs[0][1], runs[1][1])
+    assert runs[0][2] == runs[1][2]
+
+
+def test_vector_envs_come_and_go():
+    # Each owns threads; dropping one stops and joins them.
+    for k in range(20):
+        envs = hybrid_drive.make_vec(num_envs=3, num_threads=3, camera=None, vehicles=0)
+        envs.reset(seed=k)
+        envs.step([0, 1, 2])
+        del envs
