@@ -68,13 +68,13 @@ def bench_single(args: argparse.Namespace, actions: np.ndarray) -> Tuple[int, in
     step, reset = env.step, env.reset
     episodes = 0
     calls_0, sim_0 = sim.timings()
-    start = time.perf_counter()
+    cpu_0, start = time.process_time(), time.perf_counter()
     for a in actions.tolist():
         _, _, terminated, truncated, _ = step(a)
         if terminated or truncated:
             reset()
             episodes += 1
-    elapsed = time.perf_counter() - start
+    elapsed, cpu = time.perf_counter() - start, time.process_time() - cpu_0
     calls, in_sim = (t - t0 for t, t0 in zip(sim.timings(), (calls_0, sim_0)))
     # The same loop in Rust: what the simulator alone does on this machine now.
     rust_steps, _, rust_seconds = rust_loop(env.unwrapped.config, actions, args.seed)
@@ -84,6 +84,7 @@ def bench_single(args: argparse.Namespace, actions: np.ndarray) -> Tuple[int, in
         "binding_s": round(calls - in_sim, 3),
         "python_s": round(elapsed - calls, 3),
         "rust_loop_steps_per_sec": round(rust_steps / rust_seconds),
+        "cpu_s": cpu,
     }
     return len(actions), episodes, elapsed, profile
 
@@ -104,11 +105,11 @@ def bench_vector(args: argparse.Namespace, actions: np.ndarray) -> Tuple[int, in
     batches = actions.reshape(-1, args.num_envs)
     episodes = 0
     calls_0, threads_0 = sim.timings()
-    start = time.perf_counter()
+    cpu_0, start = time.process_time(), time.perf_counter()
     for a in batches:
         _, _, terminated, truncated, _ = step(a)
         episodes += int(np.count_nonzero(terminated | truncated))
-    elapsed = time.perf_counter() - start
+    elapsed, cpu = time.perf_counter() - start, time.process_time() - cpu_0
     calls, in_threads = (t - t0 for t, t0 in zip(sim.timings(), (calls_0, threads_0)))
     envs.close()
     profile = {
@@ -116,6 +117,7 @@ def bench_vector(args: argparse.Namespace, actions: np.ndarray) -> Tuple[int, in
         "binding_s": round(calls - in_threads, 3),
         "python_s": round(elapsed - calls, 3),
         "num_threads": sim.num_threads,
+        "cpu_s": cpu,
     }
     return batches.size, episodes, elapsed, profile
 
@@ -152,6 +154,10 @@ def main(argv: Optional[list] = None) -> int:
         "steps": done,
         "episodes": episodes,
         "seconds": round(elapsed, 3),
+        # CPU time of this process's threads in the timed loop: on a machine shared with other
+        # work, steps per CPU-second say what the code costs where wall-clock steps/s also say how
+        # busy the machine was.
+        "steps_per_cpu_sec": round(done / profile.pop("cpu_s")),
         "cpu": cpu_model(),
         "cores": os.cpu_count(),
         "load_before": load_before,
