@@ -155,3 +155,22 @@ def test_vector_envs_come_and_go():
         envs.reset(seed=k)
         envs.step([0, 1, 2])
         del envs
+
+
+def test_gymnasium_vector_wrappers_see_whole_episodes():
+    # RecordEpisodeStatistics reads metadata["autoreset_mode"] to count episodes across auto-resets.
+    from gymnasium.wrappers.vector import RecordEpisodeStatistics
+
+    envs = RecordEpisodeStatistics(gymnasium.make_vec("HybridDrive-v0", num_envs=2, camera=None))
+    envs.reset(seed=0)
+    lengths, steps = [], np.zeros(2, dtype=int)
+    needs_reset = np.zeros(2, dtype=bool)
+    for a in random_actions(300, seed=1, shape=(2,)):
+        _, _, terminated, truncated, info = envs.step(a)
+        steps = np.where(needs_reset, 0, steps + 1)
+        needs_reset = terminated | truncated
+        if "episode" in info:
+            for i in np.flatnonzero(info["_episode"]):
+                assert info["episode"]["l"][i] == steps[i]
+                lengths.append(int(steps[i]))
+    assert len(lengths) >= 2
