@@ -133,6 +133,7 @@ def main(argv: Optional[list] = None) -> int:
     p.add_argument("--policy", choices=["random", "forward"], default="random")
     p.add_argument("--steps", type=int, default=100_000, help="environment steps to time (default 100000)")
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--repeat", type=int, default=1, help="runs; the median one is reported (default 1)")
     p.add_argument("--json", action="store_true", help="print one JSON object on the last line")
     args = p.parse_args(argv)
     if args.num_envs < 1:
@@ -143,7 +144,8 @@ def main(argv: Optional[list] = None) -> int:
     actions = rng.integers(0, 6, size=steps) if args.policy == "random" else np.zeros(steps, dtype=np.int64)
     load_before = load()
     run = bench_single if args.num_envs == 1 else bench_vector
-    done, episodes, elapsed, profile = run(args, actions)
+    runs = sorted((run(args, actions) for _ in range(max(args.repeat, 1))), key=lambda r: r[0] / r[2])
+    done, episodes, elapsed, profile = runs[len(runs) // 2]
     result = {
         "steps_per_sec": round(done / elapsed),
         "num_envs": args.num_envs,
@@ -154,6 +156,7 @@ def main(argv: Optional[list] = None) -> int:
         "steps": done,
         "episodes": episodes,
         "seconds": round(elapsed, 3),
+        "runs_steps_per_sec": [round(r[0] / r[2]) for r in runs],
         # CPU time of this process's threads in the timed loop: on a machine shared with other
         # work, steps per CPU-second say what the code costs where wall-clock steps/s also say how
         # busy the machine was.

@@ -15,7 +15,8 @@ from hybrid_drive.spaces import observation_space, route_option, sim_config
 
 class HybridDriveVectorEnv(VectorEnv):
     """``num_envs`` copies of :class:`hybrid_drive.HybridDriveEnv` (same keyword arguments, plus
-    ``num_threads``, default one per core) stepped on a Rust thread pool with the GIL released.
+    ``num_threads``, default one per core, the calling thread among them) stepped in Rust threads
+    with the GIL released.
 
     Observations, rewards, terminations, truncations and each ``info`` key come as NumPy arrays
     with the environments along the first axis (``info["collision"]`` as indices into
