@@ -70,3 +70,8 @@ fn only_actor_train_uses_the_learner() {
     }
     assert_eq!(users, ["train.rs"], "only actor/src/train.rs may use the learner crate (ARCHITECTURE.md)");
 }
+
+#[test]
+fn the_python_binding_is_the_simulator_alone() {
+    assert_never("python", &["tokio", "tonic", "prost", "candle-core", "plotters", "proto", "agent", "learner", "actor"]);
+}

@@ -1,0 +1,213 @@
+//! `SimConfig`: what a Python user asked for (map, route, camera, variant, action set, config
+//! overrides), checked once and turned into what `sim_core` needs: the town, the `EnvConfig`, the
+//! scenario and the action set. Every error names the bad value and what would be valid.
+
+use std::path::PathBuf;
+use std::sync::{Arc, OnceLock};
+
+use pyo3::exceptions::{PyOSError, PyValueError};
+use pyo3::prelude::*;
+use sim_core::actions::ActionSet;
+use sim_core::camera::{BirdsEye, BirdsEyeConfig, CameraConfig};
+use sim_core::config::{EnvConfig, Variant};
+use sim_core::scenario::{EvalRoute, Scenario, eval_route};
+use sim_core::town::Town;
+use sim_core::vehicle::Action;
+
+/// Route names accepted by `route=`: `random` (random training routes) and the paper's seven.
+pub fn route_names() -> Vec<&'static str> {
+    std::iter::once("random").chain(EvalRoute::ALL.iter().map(|r| r.name())).collect()
+}
+
+/// The scenario named `name`, or an error listing the valid names.
+pub fn parse_route(name: &str) -> PyResult<(&'static str, Scenario)> {
+    if name == "random" {
+        return Ok(("random", Scenario::Random));
+    }
+    EvalRoute::from_name(name)
+        .map(|r| (r.name(), Scenario::Eval(r)))
+        .ok_or_else(|| PyValueError::new_err(format!("unknown route {name:?}: expected one of {}", route_names().join(", "))))
+}
+
+/// A checked environment configuration, shared by `Sim`, `VecSim` and `reference_rollout`.
+#[pyclass(module = "hybrid_drive._core", frozen)]
+#[derive(Debug)]
+pub struct SimConfig {
+    pub town: Arc<Town>,
+    pub env: EnvConfig,
+    pub scenario: Scenario,
+    pub route: &'static str,
+    pub actions: &'static [Action],
+    /// Whether observations carry the planner's path features (hybrid only).
+    pub path_features: bool,
+    pub birdseye: BirdsEye,
+    birdseye_size: u32,
+    map: Option<PathBuf>,
+}
+
+#[pymethods]
+impl SimConfig {
+    /// `camera` is `(width, height)` or `None` (no image); `config` is a JSON object of
+    /// `EnvConfig` fields (the `learner config` `[env]` table) applied before the other arguments.
+    #[new]
+    #[pyo3(signature = (*, map=None, route="random", camera=Some((84, 84)), rgb=false, variant="hybrid", vehicles=None,
+                        parked_cars=None, path_features=false, action_set="paper6", config=None, birdseye_size=256))]
+    #[allow(clippy::too_many_arguments)] // Python keyword arguments, all optional.
+    fn new(
+        map: Option<PathBuf>,
+        route: &str,
+        camera: Option<(u32, u32)>,
+        rgb: bool,
+        variant: &str,
+        vehicles: Option<usize>,
+        parked_cars: Option<usize>,
+        path_features: bool,
+        action_set: &str,
+        config: Option<&str>,
+        birdseye_size: u32,
+    ) -> PyResult<Self> {
+        let mut env: EnvConfig = match config {
+            None => EnvConfig::default(),
+            Some(json) => serde_json::from_str(json).map_err(|e| PyValueError::new_err(format!("config: {e}")))?,
+        };
+        env.variant = match variant {
+            "hybrid" => Variant::Hybrid,
+            "end_to_end" => Variant::EndToEnd,
+            other => return Err(PyValueError::new_err(format!("unknown variant {other:?}: expected \"hybrid\" or \"end_to_end\""))),
+        };
+        env.camera = camera.map(|(width, height)| CameraConfig { width, height, rgb, ..env.camera.clone().unwrap_or_default() });
+        if let Some(n) = vehicles {
+            env.traffic.vehicles = n;
+        }
+        if let Some(n) = parked_cars {
+            env.traffic.parked_cars = n;
+        }
+        env.validate().map_err(|e| PyValueError::new_err(e.to_string()))?;
+        if path_features && env.variant != Variant::Hybrid {
+            return Err(PyValueError::new_err(
+                "path_features=True needs variant=\"hybrid\": the end-to-end agent observes nothing of the planner",
+            ));
+        }
+        let set: ActionSet = serde_json::from_value(serde_json::Value::String(action_set.to_owned()))
+            .map_err(|e| PyValueError::new_err(format!("action_set {action_set:?}: {e}")))?;
+        let birdseye_cfg = BirdsEyeConfig { size: birdseye_size, ..BirdsEyeConfig::default() };
+        let birdseye = BirdsEye::new(&birdseye_cfg).map_err(|e| PyValueError::new_err(e.to_string()))?;
+        let town = load_town(map.as_deref())?;
+        let (route, scenario) = parse_route(route)?;
+        if let Scenario::Eval(r) = scenario
+            && eval_route(&town, r, env.waypoint_spacing).is_none()
+        {
+            let on = map.as_ref().map_or_else(|| "the default town".to_owned(), |p| format!("map {}", p.display()));
+            return Err(PyValueError::new_err(format!(
+                "route {route:?} needs the default town's roads, which {on} lacks: use route=\"random\" on other maps"
+            )));
+        }
+        Ok(Self { town, env, scenario, route, actions: set.actions(), path_features, birdseye, birdseye_size, map })
+    }
+
+    /// `(height, width, channels)` of the camera image, or `None` without a camera.
+    #[getter]
+    fn camera_shape(&self) -> Option<(u32, u32, u8)> {
+        self.env.camera.as_ref().map(|c| (c.height, c.width, c.channels()))
+    }
+
+    /// The highest speed the ego vehicle reaches, m/s.
+    #[getter]
+    fn speed_max(&self) -> f32 {
+        self.env.vehicle.max_speed
+    }
+
+    /// A bound on every distance the observation holds (d, the lateral offset), metres: the map's
+    /// diagonal plus a margin. An episode ends when the ego leaves the drivable surface, which lies
+    /// inside the map, so the ego is never farther than one step beyond it.
+    #[getter]
+    fn distance_max(&self) -> f32 {
+        let s = &self.town.map.surface;
+        s.cell * (s.width as f32).hypot(s.height as f32) + 100.0
+    }
+
+    /// Whether the observation holds d (the hybrid variant).
+    #[getter]
+    fn observes_d(&self) -> bool {
+        self.env.variant == Variant::Hybrid
+    }
+
+    #[getter]
+    fn observes_path(&self) -> bool {
+        self.path_features
+    }
+
+    #[getter]
+    fn variant(&self) -> &'static str {
+        match self.env.variant {
+            Variant::Hybrid => "hybrid",
+            Variant::EndToEnd => "end_to_end",
+        }
+    }
+
+    #[getter]
+    fn route(&self) -> &'static str {
+        self.route
+    }
+
+    /// The discrete actions as `(throttle, brake, steer)`, in index order.
+    #[getter]
+    fn actions(&self) -> Vec<(f32, f32, f32)> {
+        self.actions.iter().map(|a| (a.throttle, a.brake, a.steer)).collect()
+    }
+
+    #[getter]
+    fn birdseye_size(&self) -> u32 {
+        self.birdseye_size
+    }
+
+    /// Steps before an episode is truncated on this route.
+    #[getter]
+    fn time_limit(&self) -> u32 {
+        match self.scenario {
+            Scenario::Random => self.env.time_limit,
+            Scenario::Eval(_) => self.env.eval_time_limit,
+        }
+    }
+
+    /// The effective `EnvConfig` as JSON (every field, defaults included).
+    fn config_json(&self) -> String {
+        serde_json::to_string(&self.env).expect("EnvConfig serialises")
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "SimConfig(route={:?}, variant={:?}, camera={:?}, map={:?})",
+            self.route,
+            self.variant(),
+            self.camera_shape(),
+            self.map.as_ref().map(|p| p.display().to_string())
+        )
+    }
+}
+
+impl SimConfig {
+    /// This configuration on another route (for `reset(options={"route": ...})`).
+    pub fn scenario_named(&self, name: &str) -> PyResult<(&'static str, Scenario)> {
+        let (route, scenario) = parse_route(name)?;
+        if let Scenario::Eval(r) = scenario
+            && eval_route(&self.town, r, self.env.waypoint_spacing).is_none()
+        {
+            return Err(PyValueError::new_err(format!("route {route:?} needs the default town's roads, which this map lacks")));
+        }
+        Ok((route, scenario))
+    }
+}
+
+/// The embedded default town (built once per process and shared), or a map file's.
+fn load_town(map: Option<&std::path::Path>) -> PyResult<Arc<Town>> {
+    static DEFAULT: OnceLock<Arc<Town>> = OnceLock::new();
+    match map {
+        None => Ok(DEFAULT.get_or_init(Town::default_town).clone()),
+        Some(path) => {
+            let text = std::fs::read_to_string(path)
+                .map_err(|e| PyOSError::new_err((e.raw_os_error().unwrap_or(0), format!("reading map file {}: {e}", path.display()))))?;
+            Town::from_map_text(&text).map_err(|e| PyValueError::new_err(format!("map file {}: {e}", path.display())))
+        }
+    }
+}
