@@ -12,6 +12,7 @@ turns them into Gymnasium's API.
 
 from __future__ import annotations
 
+from importlib.metadata import PackageNotFoundError, version
 from typing import Any
 
 import gymnasium
@@ -27,10 +28,16 @@ __all__ = [
     "EVAL_ROUTES",
     "HybridDriveEnv",
     "HybridDriveVectorEnv",
+    "__version__",
     "make_vec",
 ]
 
 ENV_ID = "HybridDrive-v0"
+
+try:
+    __version__ = version("hybrid-drive")
+except PackageNotFoundError:  # imported from a source tree without installing
+    __version__ = "unknown"
 
 #: The paper's seven evaluation routes (Table I), in its order.
 EVAL_ROUTES = tuple(r for r in ROUTES if r != "random")
