@@ -191,6 +191,11 @@ impl Replay {
         self.first_frame
     }
 
+    /// Forgets where every stream stood.
+    pub fn end_all_streams(&mut self) {
+        self.streams.clear();
+    }
+
     /// Forgets where the streams of `actor` stood (its session ended): its next steps start
     /// afresh.
     pub fn end_streams_of(&mut self, actor: &str) {
