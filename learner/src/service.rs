@@ -104,6 +104,25 @@ impl Learner for LearnerService {
         let declared = req.metadata().get(proto::client::ACTOR_ID_HEADER).and_then(|v| v.to_str().ok()).map(str::to_owned);
         let mut incoming = req.into_inner();
         let (tx, rx) = tokio::sync::mpsc::channel(16);
+        // Batches are stored as they arrive; their acknowledgements wait for durability in
+        // order, beside, so that a client with several batches in flight gets them committed
+        // together.
+        let (ordered, mut pending) = tokio::sync::mpsc::channel::<Result<Stored, Status>>(8);
+        {
+            let shared = shared.clone();
+            tokio::spawn(async move {
+                while let Some(item) = pending.recv().await {
+                    let result = match item {
+                        Ok(stored) => acknowledge(&shared, stored).await,
+                        Err(status) => Err(status),
+                    };
+                    let stop = result.is_err();
+                    if tx.send(result).await.is_err() || stop {
+                        break;
+                    }
+                }
+            });
+        }
         tokio::spawn(async move {
             let mut stream = OpenStream { shared: shared.clone(), record: None };
             if let Some(id) = &declared {
@@ -112,26 +131,26 @@ impl Learner for LearnerService {
             while let Some(item) = incoming.next().await {
                 if shared.stopping() {
                     // Refuse new work while stopping: the actor keeps the batch and resends it.
-                    let _ = tx.send(Err(Status::unavailable("the learner is stopping; retry shortly"))).await;
+                    let _ = ordered.send(Err(Status::unavailable("the learner is stopping; retry shortly"))).await;
                     break;
                 }
                 let batch = match item {
                     Ok(b) => b,
                     Err(status) => {
                         if let Some(refusal) = undecodable(&shared, &stream, &peer, &status) {
-                            let _ = tx.send(Err(refusal)).await;
+                            let _ = ordered.send(Err(refusal)).await;
                         }
                         break;
                     }
                 };
                 if stream.record.is_none() && !stream.attach(&batch.actor_id) {
                     tracing::debug!(actor_id = %batch.actor_id, "batch from an unknown actor id: asked to register");
-                    let _ = tx.send(Err(unknown_actor(&batch.actor_id))).await;
+                    let _ = ordered.send(Err(unknown_actor(&batch.actor_id))).await;
                     break;
                 }
-                let result = ingest(&shared, &batch).await;
+                let result = store(&shared, batch);
                 let stop = result.is_err();
-                if tx.send(result).await.is_err() || stop {
+                if ordered.send(result).await.is_err() || stop {
                     break;
                 }
             }
@@ -267,16 +286,27 @@ fn expect(shared: &Shared) -> Expect {
     }
 }
 
-/// Validates and stores one batch; returns its acknowledgement (once durable, with
-/// `durability = "ack"`) or the refusal.
-async fn ingest(shared: &Shared, b: &pb::ExperienceBatch) -> Result<pb::BatchAck, Status> {
+/// A batch in the replay (and written to the log), not yet acknowledged.
+#[derive(Debug)]
+struct Stored {
+    batch: pb::ExperienceBatch,
+    stored: u64,
+    /// Its position in the replay log.
+    position: Option<u64>,
+    learner_step: u64,
+    env_steps: u64,
+    first_episode: u64,
+}
+
+/// Validates one batch and stores it (replay and log), or returns the refusal.
+fn store(shared: &Shared, b: pb::ExperienceBatch) -> Result<Stored, Status> {
     let checked = {
         let mut actors = shared.actors.lock().expect("actors lock");
         let Some(a) = actors.iter_mut().find(|a| a.id == b.actor_id) else { return Err(unknown_actor(&b.actor_id)) };
         a.last_seen = Instant::now();
-        match validate::check(&expect(shared), a, b) {
+        match validate::check(&expect(shared), a, &b) {
             Ok(positions) => {
-                validate::accept(a, b, positions);
+                validate::accept(a, &b, positions);
                 Ok(())
             }
             Err(reject) => {
@@ -351,6 +381,13 @@ async fn ingest(shared: &Shared, b: &pb::ExperienceBatch) -> Result<pb::BatchAck
         (stored, position, c.learner_step, c.env_steps, first)
     };
     shared.data_arrived.1.notify_one();
+    Ok(Stored { batch: b, stored, position, learner_step, env_steps: total_steps, first_episode })
+}
+
+/// Waits until a stored batch is durable (with `durability = "ack"`), then does its bookkeeping
+/// and returns its acknowledgement.
+async fn acknowledge(shared: &Shared, s: Stored) -> Result<pb::BatchAck, Status> {
+    let Stored { batch: b, stored, position, learner_step, env_steps: total_steps, first_episode } = s;
     if let (Some(log), Some(p)) = (&shared.log, position) {
         log.durable(p).await.map_err(|e| refuse_unlogged(shared, &e))?;
     }

@@ -397,6 +397,44 @@ fn commit_loop(inner: &Inner) {
     }
 }
 
+/// One batch as an audit sees it.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Entry {
+    pub position: u64,
+    pub actor: String,
+    pub steps: usize,
+}
+
+/// Reads the log of `run_dir` without changing it (no learner may be writing it): every valid
+/// batch in order, and the first position of the oldest segment (0 if there is none). Torn or
+/// corrupt ends are skipped, as [`ReplayLog::open`] would cut them.
+pub fn inventory(run_dir: &Path, frame_bytes: usize) -> Result<(Vec<Entry>, u64), LogError> {
+    let dir = run_dir.join(DIR);
+    let mut names: Vec<(u64, PathBuf)> = fs::read_dir(&dir)
+        .map_err(io(&dir, "listing"))?
+        .filter_map(|e| e.ok())
+        .filter_map(|e| Some((e.file_name().to_string_lossy().strip_suffix(".seg")?.parse::<u64>().ok()?, e.path())))
+        .collect();
+    names.sort();
+    let mut out = Vec::new();
+    let mut first = 0;
+    for (start, path) in names {
+        let bytes = fs::read(&path).map_err(io(&path, "reading"))?;
+        let (records, _, _) = format::records(&bytes);
+        if records.is_empty() {
+            continue;
+        }
+        if first == 0 {
+            first = start;
+        }
+        for (position, payload) in records {
+            let r = format::decode(payload, frame_bytes).map_err(|reason| LogError::Corrupt { path: path.clone(), reason })?;
+            out.push(Entry { position, actor: r.actor.to_owned(), steps: r.steps.len() });
+        }
+    }
+    Ok((out, first))
+}
+
 fn create_segment(dir: &Path, first: u64, frame_bytes: usize, frame_end: u64) -> Result<(File, Segment), LogError> {
     let path = dir.join(format!("{first:020}.seg"));
     let mut f = fs::OpenOptions::new().create(true).truncate(true).write(true).open(&path).map_err(io(&path, "creating"))?;
