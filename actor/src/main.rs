@@ -11,6 +11,7 @@ mod policy;
 mod record;
 mod routes;
 mod run;
+mod split;
 #[cfg(test)]
 mod testing;
 mod train;
@@ -49,6 +50,10 @@ struct Cli {
     /// Seed of the environments and exploration.
     #[arg(long, default_value_t = 0)]
     seed: u64,
+    /// Append a JSON line per acknowledged batch to this file (name, actor id, seq, steps,
+    /// replay log position): what the learner promised to keep, for audits and the chaos test.
+    #[arg(long, hide = true)]
+    ack_log: Option<std::path::PathBuf>,
 }
 
 #[derive(Debug, Subcommand)]
@@ -94,6 +99,7 @@ fn main() -> Result<()> {
                 batch_steps: cli.batch_steps.max(1),
                 buffer_steps: cli.buffer_steps.max(1),
                 seed: cli.seed,
+                ack_log: cli.ack_log,
             };
             tokio::runtime::Builder::new_multi_thread().worker_threads(2).enable_all().build()?.block_on(run::run(opts))
         }

@@ -4,7 +4,13 @@
 //! ε-greedily, and streams the steps in batches. The network and the stepping loop never wait on
 //! the learner: steps go to a bounded outbox that a sender task drains, new weights are picked up
 //! between steps, and a lost learner only means buffering, counting what overflowed, and
-//! reconnecting. SIGINT/SIGTERM: stop stepping, flush what can be sent, exit 0.
+//! reconnecting. SIGINT/SIGTERM: stop stepping, flush what can be sent within
+//! [`FLUSH_DEADLINE`] (even to a frozen learner), say how many steps could not be sent, exit 0.
+//!
+//! Batches are cut below the learner's `max_message_bytes` and `max_batch_steps` (`split.rs`). A
+//! refusal is logged with the learner's reason (ERROR for a batch it will never take, which is
+//! dropped and counted; WARN otherwise), and every failed stream is followed by a wait that grows
+//! from 0.5 s to 30 s (±25 %) until a batch is acknowledged again: never a tight reconnect loop.
 
 use std::collections::VecDeque;
 use std::path::PathBuf;
@@ -16,7 +22,7 @@ use agent::NetShape;
 use agent::config::{AgentConfig, RunConfig};
 use agent::fastnet::{Inference, Params};
 use anyhow::{Context, Result};
-use proto::client::{Client, connect};
+use proto::client::{ACTOR_ID_HEADER, Client, connect};
 use proto::v1 as pb;
 use rand::{Rng, RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -24,6 +30,11 @@ use sim_core::config::EnvConfig;
 use sim_core::env::Env;
 use sim_core::scenario::Scenario;
 use sim_core::town::Town;
+
+use crate::split::{Limits, fits, split};
+
+/// How long a stopping actor keeps trying to hand its buffered steps to the learner.
+pub const FLUSH_DEADLINE: Duration = Duration::from_secs(5);
 
 /// Options of an actor process.
 #[derive(Debug, Clone)]
@@ -37,6 +48,9 @@ pub struct ActorOptions {
     /// Steps the outbox keeps while the learner is away; older ones are dropped (and counted).
     pub buffer_steps: usize,
     pub seed: u64,
+    /// Appends a JSON line per acknowledged batch to this file (for audits such as the chaos
+    /// test: which batches the learner promised to keep, and where in its replay log).
+    pub ack_log: Option<PathBuf>,
 }
 
 /// Steps waiting to be sent, bounded.
@@ -57,8 +71,12 @@ struct Link {
     /// Version the policy acts with.
     acting_version: AtomicU64,
     stop: AtomicBool,
+    /// The stepping thread has ended and handed over its last steps.
+    stepper_done: AtomicBool,
     connected: AtomicBool,
     env_steps: AtomicU64,
+    /// The id of the current registration (the weights poll names it).
+    actor_id: Mutex<String>,
 }
 
 /// Registers, retrying with exponential backoff (0.5 s doubling to 30 s, ±25 % jitter) until it
@@ -114,9 +132,12 @@ pub async fn run(opts: ActorOptions) -> Result<()> {
         fresh_weights: Mutex::new(None),
         acting_version: AtomicU64::new(0),
         stop: AtomicBool::new(false),
+        stepper_done: AtomicBool::new(false),
         connected: AtomicBool::new(false),
         env_steps: AtomicU64::new(0),
+        actor_id: Mutex::new(String::new()),
     });
+    let mut ack_log = AckLog::open(opts.ack_log.as_deref())?;
     {
         let link = link.clone();
         tokio::spawn(async move {
@@ -128,6 +149,7 @@ pub async fn run(opts: ActorOptions) -> Result<()> {
     let mut rng = ChaCha8Rng::seed_from_u64(opts.seed ^ std::process::id() as u64);
     let Some((client, reg)) = register(&opts, &token, &link, opts.envs, &mut rng).await else { return Ok(()) };
     tracing::info!(actor_id = %reg.actor_id, index = reg.actor_index, run_id = %reg.run_id, envs = opts.envs, "registered");
+    link.actor_id.lock().expect("actor id lock").clone_from(&reg.actor_id);
     let env_cfg: EnvConfig = toml::from_str(&reg.env_config_toml).context("the learner's [env] configuration")?;
     let agent_cfg: AgentConfig = toml::from_str(&reg.agent_config_toml).context("the learner's [agent] configuration")?;
     let run_cfg = RunConfig { env: env_cfg, agent: agent_cfg, ..RunConfig::default() };
@@ -137,27 +159,116 @@ pub async fn run(opts: ActorOptions) -> Result<()> {
         let link = link.clone();
         let cfg = run_cfg.clone();
         let (envs, seed, index, batch_steps, buffer_steps) = (opts.envs, opts.seed, reg.actor_index, opts.batch_steps, opts.buffer_steps);
-        std::thread::Builder::new()
-            .name("step".into())
-            .spawn(move || step_loop(&cfg, &link, envs, seed, index, batch_steps, buffer_steps))?
+        std::thread::Builder::new().name("step".into()).spawn(move || {
+            let r = step_loop(&cfg, &link, envs, seed, index, batch_steps, buffer_steps);
+            link.stepper_done.store(true, Ordering::SeqCst);
+            r
+        })?
     };
     link.connected.store(true, Ordering::SeqCst);
-    let weights =
-        tokio::spawn(weights_loop(opts.clone(), token.clone(), link.clone(), reg.actor_id.clone(), client.clone(), run_cfg.net_shape()));
+    let weights = tokio::spawn(weights_loop(opts.clone(), token.clone(), link.clone(), client.clone(), run_cfg.net_shape()));
     let progress = tokio::spawn(progress_loop(link.clone()));
-    send_loop(&opts, &token, &link, client, reg, &mut rng).await;
+    // Sending ends when stopped and flushed, or at the flush deadline, whatever the learner does
+    // (a frozen learner holds a call open for ever).
+    let flush_deadline = async {
+        while !link.stop.load(Ordering::SeqCst) {
+            tokio::time::sleep(Duration::from_millis(50)).await;
+        }
+        tokio::time::sleep(FLUSH_DEADLINE).await;
+    };
+    tokio::select! {
+        () = send_loop(&opts, &token, &link, client, reg, &mut rng, &mut ack_log) => {}
+        () = flush_deadline => {}
+    }
     weights.abort();
     progress.abort();
     let stepped =
         tokio::task::spawn_blocking(move || stepper.join()).await?.map_err(|_| anyhow::anyhow!("the stepping thread panicked"))?;
     stepped?;
     let ob = link.outbox.lock().expect("outbox lock");
+    if ob.steps > 0 {
+        tracing::warn!(
+            unsent_steps = ob.steps,
+            flush_deadline_secs = FLUSH_DEADLINE.as_secs(),
+            "could not send {} steps to the learner before exiting (it did not acknowledge them within the flush deadline)",
+            ob.steps
+        );
+    }
     tracing::info!(unsent_steps = ob.steps, dropped_steps = ob.dropped, env_steps = link.env_steps.load(Ordering::SeqCst), "actor stopped");
     Ok(())
 }
 
-/// Streams outbox batches, re-registering and re-sending after any failure; after stop, flushes
-/// for up to 5 seconds.
+/// The `--ack-log` file: one JSON line per acknowledged batch, written (unbuffered) as the
+/// acknowledgement arrives, so that it survives a SIGKILL of the actor.
+#[derive(Debug)]
+struct AckLog(Option<std::fs::File>);
+
+impl AckLog {
+    fn open(path: Option<&std::path::Path>) -> Result<Self> {
+        let file = path
+            .map(|p| {
+                std::fs::OpenOptions::new()
+                    .create(true)
+                    .append(true)
+                    .open(p)
+                    .with_context(|| format!("opening the ack log {}", p.display()))
+            })
+            .transpose()?;
+        Ok(Self(file))
+    }
+
+    fn record(&mut self, name: &str, batch: &pb::ExperienceBatch, ack: &pb::BatchAck) {
+        use std::io::Write;
+        let Some(f) = self.0.as_mut() else { return };
+        let line = serde_json::json!({
+            "name": name,
+            "actor_id": batch.actor_id,
+            "seq": batch.seq,
+            "steps": batch.steps.len(),
+            "stored": ack.stored,
+            "log_position": ack.log_position,
+        });
+        if let Err(e) = f.write_all(format!("{line}\n").as_bytes()) {
+            tracing::warn!("writing the ack log: {e}");
+        }
+    }
+}
+
+/// Waits between failed streams: 0.5 s doubling to 30 s, ±25 % jitter; back to the start once a
+/// batch is acknowledged.
+#[derive(Debug)]
+struct Backoff {
+    next: f64,
+}
+
+impl Backoff {
+    const FIRST: f64 = 0.5;
+    const MAX: f64 = 30.0;
+
+    fn wait(&mut self, rng: &mut ChaCha8Rng) -> Duration {
+        let wait = self.next * rng.random_range(0.75..1.25);
+        self.next = (self.next * 2.0).min(Self::MAX);
+        Duration::from_secs_f64(wait)
+    }
+
+    fn reset(&mut self) {
+        self.next = Self::FIRST;
+    }
+}
+
+/// How a stream of batches ended.
+#[derive(Debug)]
+enum StreamEnd {
+    /// Stopped and flushed.
+    Done,
+    /// The learner does not know this registration (it restarted): register again now.
+    Reregister,
+    /// Anything else: wait (backoff), then reconnect.
+    Failed,
+}
+
+/// Streams outbox batches, re-registering and re-sending after any failure, with backoff; after
+/// stop, flushes (the caller bounds how long).
 async fn send_loop(
     opts: &ActorOptions,
     token: &Option<String>,
@@ -165,87 +276,167 @@ async fn send_loop(
     mut client: Client,
     mut reg: pb::RegisterResponse,
     rng: &mut ChaCha8Rng,
+    ack_log: &mut AckLog,
 ) {
     let mut seq = 0u64;
-    let mut stop_deadline: Option<Instant> = None;
+    let mut limits = Limits::from_register(&reg);
+    let mut backoff = Backoff { next: Backoff::FIRST };
     loop {
-        if link.stop.load(Ordering::SeqCst) {
-            let deadline = *stop_deadline.get_or_insert(Instant::now() + Duration::from_secs(5));
-            let empty = link.outbox.lock().expect("outbox lock").batches.is_empty();
-            if empty || Instant::now() > deadline {
-                return;
-            }
-        }
         let (tx, rx) = tokio::sync::mpsc::channel::<pb::ExperienceBatch>(4);
-        let call = client.stream_experience(tokio_stream::wrappers::ReceiverStream::new(rx)).await;
-        let mut acks = match call {
-            Ok(r) => r.into_inner(),
-            Err(status) => {
-                tracing::warn!(%status, "experience stream refused; reconnecting");
-                link.connected.store(false, Ordering::SeqCst);
-                match reconnect(opts, token, link, rng).await {
-                    Some((c, r)) => (client, reg) = (c, r),
-                    None => return,
-                }
-                continue;
-            }
-        };
-        // Send the front batch, wait for its acknowledgement, pop it: nothing acknowledged is
-        // kept, nothing unacknowledged is lost.
-        let failed = loop {
-            let front = link.outbox.lock().expect("outbox lock").batches.front().cloned();
-            let Some((steps, episodes, epsilon, version)) = front else {
-                if link.stop.load(Ordering::SeqCst) {
-                    break false;
-                }
-                tokio::time::sleep(Duration::from_millis(20)).await;
-                continue;
-            };
-            seq += 1;
-            let dropped = std::mem::take(&mut link.outbox.lock().expect("outbox lock").dropped);
-            let batch = pb::ExperienceBatch {
-                actor_id: reg.actor_id.clone(),
-                seq,
-                steps,
-                episodes,
-                weights_version: version,
-                epsilon,
-                dropped_steps: dropped,
-            };
-            if tx.send(batch).await.is_err() {
-                break true;
-            }
-            match acks.message().await {
-                Ok(Some(_ack)) => {
-                    let mut ob = link.outbox.lock().expect("outbox lock");
-                    if let Some((s, _, _, _)) = ob.batches.pop_front() {
-                        ob.steps -= s.len();
-                    }
-                }
-                Ok(None) => break true,
-                Err(status) => {
-                    tracing::warn!(%status, "batch not accepted");
-                    if status.code() == tonic::Code::InvalidArgument || status.code() == tonic::Code::ResourceExhausted {
-                        // The learner will never take this batch: drop it, count it.
-                        let mut ob = link.outbox.lock().expect("outbox lock");
-                        if let Some((s, _, _, _)) = ob.batches.pop_front() {
-                            ob.steps -= s.len();
-                            ob.dropped += s.len() as u64;
-                        }
-                    }
-                    break true;
-                }
-            }
-        };
-        if !failed {
-            return;
+        let mut req = tonic::Request::new(tokio_stream::wrappers::ReceiverStream::new(rx));
+        if let Ok(id) = reg.actor_id.parse() {
+            req.metadata_mut().insert(ACTOR_ID_HEADER, id);
         }
+        let end = match client.stream_experience(req).await {
+            Ok(r) => stream_batches(opts, link, &reg, &mut seq, &mut limits, tx, r.into_inner(), ack_log, &mut backoff).await,
+            Err(status) => {
+                tracing::warn!(code = ?status.code(), learner_says = %status.message(), "experience stream refused");
+                if status.code() == tonic::Code::FailedPrecondition { StreamEnd::Reregister } else { StreamEnd::Failed }
+            }
+        };
         link.connected.store(false, Ordering::SeqCst);
+        match end {
+            StreamEnd::Done => return,
+            StreamEnd::Reregister => {}
+            StreamEnd::Failed => {
+                let wait = backoff.wait(rng);
+                tracing::info!(retry_in_secs = format!("{:.1}", wait.as_secs_f64()), "reconnecting after a wait");
+                sleep_unless_stopped(link, wait).await;
+            }
+        }
         match reconnect(opts, token, link, rng).await {
             Some((c, r)) => (client, reg) = (c, r),
             None => return,
         }
+        limits = Limits::from_register(&reg);
     }
+}
+
+/// Sends the outbox's batches on one stream, front first, each once its predecessor is
+/// acknowledged: nothing acknowledged is kept, nothing unacknowledged is lost.
+#[allow(clippy::too_many_arguments)]
+async fn stream_batches(
+    opts: &ActorOptions,
+    link: &Link,
+    reg: &pb::RegisterResponse,
+    seq: &mut u64,
+    limits: &mut Limits,
+    tx: tokio::sync::mpsc::Sender<pb::ExperienceBatch>,
+    mut acks: tonic::Streaming<pb::BatchAck>,
+    ack_log: &mut AckLog,
+    backoff: &mut Backoff,
+) -> StreamEnd {
+    loop {
+        let front = {
+            let mut ob = link.outbox.lock().expect("outbox lock");
+            fit_front(&mut ob, *limits);
+            ob.batches.front().cloned()
+        };
+        let Some((steps, episodes, epsilon, version)) = front else {
+            if link.stop.load(Ordering::SeqCst) && link.stepper_done.load(Ordering::SeqCst) {
+                return StreamEnd::Done;
+            }
+            tokio::time::sleep(Duration::from_millis(20)).await;
+            continue;
+        };
+        *seq += 1;
+        let dropped = std::mem::take(&mut link.outbox.lock().expect("outbox lock").dropped);
+        let batch = pb::ExperienceBatch {
+            actor_id: reg.actor_id.clone(),
+            seq: *seq,
+            steps,
+            episodes,
+            weights_version: version,
+            epsilon,
+            dropped_steps: dropped,
+        };
+        if tx.send(batch.clone()).await.is_err() {
+            return StreamEnd::Failed;
+        }
+        match acks.message().await {
+            Ok(Some(ack)) => {
+                let mut ob = link.outbox.lock().expect("outbox lock");
+                if let Some((s, _, _, _)) = ob.batches.pop_front() {
+                    ob.steps -= s.len();
+                }
+                drop(ob);
+                backoff.reset();
+                ack_log.record(&opts.name, &batch, &ack);
+            }
+            Ok(None) => {
+                tracing::warn!("the learner ended the experience stream without a reason");
+                return StreamEnd::Failed;
+            }
+            Err(status) => return refused(link, limits, &batch, &status),
+        }
+    }
+}
+
+/// Cuts the outbox's front batch to `limits` if it is over them; drops (and counts) a batch with
+/// a step that cannot fit at all.
+fn fit_front(ob: &mut Outbox, limits: Limits) {
+    while let Some((steps, episodes, _, _)) = ob.batches.front() {
+        if fits(steps, episodes, limits) {
+            return;
+        }
+        let (steps, episodes, epsilon, version) = ob.batches.pop_front().expect("checked");
+        let n = steps.len();
+        match split(steps, episodes, limits) {
+            Ok(pieces) => {
+                tracing::debug!(
+                    steps = n,
+                    pieces = pieces.len(),
+                    max_message_bytes = limits.max_bytes,
+                    "batch split to fit the learner's limits"
+                );
+                for (s, e) in pieces.into_iter().rev() {
+                    ob.batches.push_front((s, e, epsilon, version));
+                }
+                return;
+            }
+            Err(e) => {
+                ob.steps -= n;
+                ob.dropped += n as u64;
+                tracing::error!(
+                    step_bytes = e.bytes,
+                    max_message_bytes = e.limit,
+                    "a step is larger than the learner accepts (service.max_message_bytes): dropping its batch of {n} steps"
+                );
+            }
+        }
+    }
+}
+
+/// Handles the learner's refusal of `batch` (the outbox's front): logs the learner's reason;
+/// drops a batch the learner will never take; asks for smaller pieces when it was too large.
+fn refused(link: &Link, limits: &mut Limits, batch: &pb::ExperienceBatch, status: &tonic::Status) -> StreamEnd {
+    let (code, says) = (status.code(), status.message());
+    let drop_front = |why: &str| {
+        let mut ob = link.outbox.lock().expect("outbox lock");
+        if let Some((s, _, _, _)) = ob.batches.pop_front() {
+            ob.steps -= s.len();
+            ob.dropped += s.len() as u64;
+        }
+        tracing::error!(seq = batch.seq, steps = batch.steps.len(), learner_says = %says, "the learner refused a batch ({why}); its steps are dropped and counted");
+    };
+    match code {
+        tonic::Code::InvalidArgument => drop_front("invalid"),
+        tonic::Code::ResourceExhausted if batch.steps.len() > 1 => {
+            // The learner's limit is below what it announced (or the batch's other fields grew):
+            // send halves from now on.
+            let bytes = batch.steps.iter().map(prost::Message::encoded_len).sum::<usize>();
+            limits.max_bytes = limits.max_bytes.min(bytes / 2 + 4096 + 1);
+            limits.max_steps = limits.max_steps.min(batch.steps.len() / 2).max(1);
+            tracing::warn!(learner_says = %says, max_message_bytes = limits.max_bytes, max_batch_steps = limits.max_steps, "the learner refused a batch as too large; sending smaller batches");
+        }
+        tonic::Code::ResourceExhausted => drop_front("too large, a single step"),
+        tonic::Code::FailedPrecondition => {
+            tracing::info!(learner_says = %says, "the learner does not know this registration (it restarted?): registering again");
+            return StreamEnd::Reregister;
+        }
+        _ => tracing::warn!(code = ?code, learner_says = %says, "experience stream ended"),
+    }
+    StreamEnd::Failed
 }
 
 async fn reconnect(
@@ -256,21 +447,25 @@ async fn reconnect(
 ) -> Option<(Client, pb::RegisterResponse)> {
     let r = register(opts, token, link, opts.envs, rng).await?;
     tracing::info!(actor_id = %r.1.actor_id, "reconnected");
+    link.actor_id.lock().expect("actor id lock").clone_from(&r.1.actor_id);
     link.connected.store(true, Ordering::SeqCst);
     Some(r)
 }
 
 /// Polls for new weights every second; never blocks the stepping thread.
-async fn weights_loop(opts: ActorOptions, token: Option<String>, link: Arc<Link>, actor_id: String, mut client: Client, shape: NetShape) {
+async fn weights_loop(opts: ActorOptions, token: Option<String>, link: Arc<Link>, mut client: Client, shape: NetShape) {
     loop {
         if link.stop.load(Ordering::SeqCst) {
             return;
         }
         let have = link.acting_version.load(Ordering::SeqCst);
+        let actor_id = link.actor_id.lock().expect("actor id lock").clone();
         match client.get_weights(pb::GetWeightsRequest { actor_id: actor_id.clone(), have_version: have }).await {
             Ok(w) => {
                 let w = w.into_inner();
-                if !w.safetensors.is_empty() && w.version > have {
+                // Any other version is newer: versions only grow within a run, also across the
+                // learner's restarts, and a learner of another run starts its own.
+                if !w.safetensors.is_empty() && w.version != have {
                     match agent::weights::from_safetensors(shape, &w.safetensors, "") {
                         Ok(params) => *link.fresh_weights.lock().expect("weights lock") = Some((w.version, params)),
                         Err(err) => tracing::warn!(%err, version = w.version, "weights refused"),

@@ -163,6 +163,9 @@ pub async fn run(args: &TrainArgs) -> Result<()> {
     tokio::select! {
         () = proto::shutdown::signal() => {}
         () = budget_spent => eprintln!("time budget of {:.1} min spent", args.max_minutes.unwrap_or_default()),
+        // Training died (see `learner::serve`): stop everything and exit non-zero (the stop below
+        // returns the reason); the same command resumes from the last checkpoint and the replay log.
+        reason = running.failed() => eprintln!("the learner stopped: {reason}"),
     }
     progress.abort();
     if let Some(e) = evaluations {

@@ -140,15 +140,47 @@ pub struct ServiceConfig {
     pub listen: String,
     /// Run directory: effective config, checkpoints, metrics (default `runs/default`).
     pub run_dir: String,
-    /// Seconds between checkpoints (default 300).
+    /// Seconds between checkpoints (default 300). A fresh run writes one before it serves, and
+    /// the first after training starts comes after at most 30 s; a failed write is retried with
+    /// backoff.
     pub checkpoint_interval_secs: u64,
     /// Largest gRPC message accepted or sent, bytes (default 64 MiB: a weights message is ~7 MB
     /// for the paper network, a batch of 256 84×84 RGB transitions ~5.4 MB).
     pub max_message_bytes: usize,
-    /// Seconds of silence after which an actor counts as disconnected (default 30).
+    /// An actor counts as connected while an experience stream of it is open and it was heard
+    /// from (a batch, or its weights poll every second) within this many seconds (default 10).
     pub actor_timeout_secs: u64,
     /// Episodes in the rolling statistics of the status (default 100).
     pub stats_window: usize,
+    /// `ack` (default): a batch is acknowledged only once it is in the replay log on disk
+    /// (`RUN_DIR/replay-log/`, synced by group commit), and `--resume` rebuilds the replay from
+    /// it. `none`: acknowledged once in memory; the replay starts empty after a restart.
+    pub durability: Durability,
+    /// Bytes per replay log segment (default 64 MiB); segments whose transitions have all left
+    /// the replay are deleted, so the log holds about the replay's bytes plus one segment.
+    pub replay_log_segment_bytes: u64,
+}
+
+/// What an acknowledgement promises (`service.durability`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Durability {
+    /// Acknowledged ⇒ on disk (the replay log, fsynced).
+    #[default]
+    Ack,
+    /// Acknowledged ⇒ in memory only.
+    None,
+}
+
+impl Durability {
+    /// The configuration's spelling.
+    #[must_use]
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Ack => "ack",
+            Self::None => "none",
+        }
+    }
 }
 
 impl Default for ServiceConfig {
@@ -158,8 +190,10 @@ impl Default for ServiceConfig {
             run_dir: "runs/default".into(),
             checkpoint_interval_secs: 300,
             max_message_bytes: 64 << 20,
-            actor_timeout_secs: 30,
+            actor_timeout_secs: 10,
             stats_window: 100,
+            durability: Durability::Ack,
+            replay_log_segment_bytes: 64 << 20,
         }
     }
 }
@@ -291,6 +325,12 @@ impl RunConfig {
         }
         if s.max_message_bytes < 1 << 20 {
             return Err(("service.max_message_bytes".into(), format!("{} is below 1 MiB", s.max_message_bytes)));
+        }
+        if s.actor_timeout_secs == 0 {
+            return Err(("service.actor_timeout_secs".into(), "must be at least 1".into()));
+        }
+        if s.replay_log_segment_bytes < 64 << 10 {
+            return Err(("service.replay_log_segment_bytes".into(), format!("{} is below 64 KiB", s.replay_log_segment_bytes)));
         }
         if s.stats_window == 0 {
             return Err(("service.stats_window".into(), "must be at least 1".into()));

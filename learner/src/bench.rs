@@ -10,7 +10,7 @@ use rand_chacha::ChaCha8Rng;
 use crate::dqn::{Batch, Dqn};
 use crate::serve::{ServeOptions, start};
 use agent::NetShape;
-use agent::config::{AgentConfig, RunConfig};
+use agent::config::{AgentConfig, Durability, RunConfig};
 use agent::fastnet::{FastNet, Params};
 
 /// Parses `WxHxC`, e.g. `84x84x3`.
@@ -151,13 +151,35 @@ fn candle_step(shape: &NetShape, params: &Params, b: &Batch) -> candle_core::Res
     Ok(())
 }
 
+/// [`ingest_one`] for each of `modes`, in the same run: `transitions_per_sec` is the last mode's,
+/// and `by_durability` has each (`none` is the learner before the replay log; `ack` acknowledges a
+/// batch once it is synced to disk).
+pub async fn ingest(seconds: f64, modes: &[Durability]) -> Result<serde_json::Value> {
+    let load_before = load_average();
+    let mut by = serde_json::Map::new();
+    let mut last = 0.0;
+    for &mode in modes {
+        last = ingest_one(seconds, mode).await?;
+        tracing::info!(durability = mode.name(), transitions_per_sec = last, "ingestion measured");
+        by.insert(mode.name().into(), serde_json::json!(last));
+    }
+    Ok(serde_json::json!({
+        "transitions_per_sec": last,
+        "by_durability": by,
+        "load_before": load_before,
+        "load_after": load_average(),
+    }))
+}
+
 /// Streams batches of 64 transitions of 84×84 gray frames to an in-process learner on loopback for
 /// `seconds` and counts the transitions acknowledged per second. Training is held off (the replay
-/// never reaches its minimum) so that only ingestion is measured.
-pub async fn ingest(seconds: f64) -> Result<serde_json::Value> {
+/// never reaches its minimum) so that only ingestion is measured. The run directory is under the
+/// system's temporary directory: with `durability = "ack"`, its disk is what is measured.
+pub async fn ingest_one(seconds: f64, durability: Durability) -> Result<f64> {
     let dir = std::env::temp_dir().join(format!("learner-bench-ingest-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     let mut cfg = RunConfig::default();
+    cfg.service.durability = durability;
     cfg.agent.replay_capacity = 200_000;
     cfg.agent.min_replay = 200_000;
     cfg.service.listen = "127.0.0.1:0".into();
@@ -224,7 +246,7 @@ pub async fn ingest(seconds: f64) -> Result<serde_json::Value> {
     if stored == 0 {
         bail!("no transition was acknowledged");
     }
-    Ok(serde_json::json!({ "transitions_per_sec": stored as f64 / secs }))
+    Ok(stored as f64 / secs)
 }
 
 /// Runs a learner here (default configuration, so the paper network at the default camera) and
@@ -234,7 +256,7 @@ pub async fn ingest(seconds: f64) -> Result<serde_json::Value> {
 ///
 /// Without `train`, the learner only ingests (its replay never reaches its minimum): the actors'
 /// own rate with nothing else on the cores.
-pub async fn e2e(actors: usize, envs: usize, seconds: f64, train: bool) -> Result<serde_json::Value> {
+pub async fn e2e(actors: usize, envs: usize, seconds: f64, train: bool, durability: Durability) -> Result<serde_json::Value> {
     let exe = std::env::current_exe()?;
     let actor_exe = exe.with_file_name(if cfg!(windows) { "actor.exe" } else { "actor" });
     if !actor_exe.exists() {
@@ -242,6 +264,7 @@ pub async fn e2e(actors: usize, envs: usize, seconds: f64, train: bool) -> Resul
     }
     let load_before = load_average();
     let mut cfg = RunConfig::default();
+    cfg.service.durability = durability;
     if !train {
         cfg.agent.min_replay = cfg.agent.replay_capacity;
     }
@@ -310,5 +333,6 @@ pub async fn e2e(actors: usize, envs: usize, seconds: f64, train: bool) -> Resul
         "load_after": load_average(),
         "actors": actors,
         "envs_per_actor": envs,
+        "durability": durability.name(),
     }))
 }

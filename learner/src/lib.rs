@@ -16,3 +16,6 @@ pub mod service;
 pub mod state;
 pub mod status;
 pub mod train;
+pub mod validate;
+pub mod versions;
+pub mod wal;

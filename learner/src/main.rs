@@ -139,19 +139,35 @@ enum BenchCommand {
         /// Ingest only, no training: the actors' own rate.
         #[arg(long)]
         no_train: bool,
+        /// `ack` (batches acknowledged once in the replay log on disk) or `none`.
+        #[arg(long, default_value = "ack", value_parser = parse_durability)]
+        durability: agent::config::Durability,
         /// Print one JSON object on the last line of stdout.
         #[arg(long)]
         json: bool,
     },
-    /// Transitions per second accepted over gRPC on loopback (84×84 gray): {"transitions_per_sec"}.
+    /// Transitions per second accepted over gRPC on loopback (84×84 gray):
+    /// {"transitions_per_sec","by_durability":{..},"load_before","load_after"}.
     Ingest {
-        /// Seconds to stream.
+        /// Seconds to stream (per durability mode).
         #[arg(long, default_value_t = 5.0)]
         seconds: f64,
+        /// `ack`, `none`, or `both` (none, then ack, in the same run: the cost of durability).
+        #[arg(long, default_value = "ack")]
+        durability: String,
         /// Print one JSON object on the last line of stdout.
         #[arg(long)]
         json: bool,
     },
+}
+
+/// `ack` or `none` (`service.durability`).
+fn parse_durability(s: &str) -> Result<agent::config::Durability, String> {
+    match s {
+        "ack" => Ok(agent::config::Durability::Ack),
+        "none" => Ok(agent::config::Durability::None),
+        other => Err(format!("`{other}`: expected ack or none")),
+    }
 }
 
 /// Prints a benchmark result: JSON on the last line, or readable `key: value` lines.
@@ -230,19 +246,24 @@ fn main() -> Result<()> {
                 print_result(&v, json);
                 Ok(())
             }
-            Command::Bench(BenchCommand::E2e { actors, envs, seconds, no_train, json }) => {
+            Command::Bench(BenchCommand::E2e { actors, envs, seconds, no_train, durability, json }) => {
                 if actors == 0 || envs == 0 || !(seconds > 0.0 && seconds.is_finite()) {
                     anyhow::bail!("--actors and --envs must be at least 1 and --seconds positive");
                 }
-                let v = learner::bench::e2e(actors, envs, seconds, !no_train).await?;
+                let v = learner::bench::e2e(actors, envs, seconds, !no_train, durability).await?;
                 print_result(&v, json);
                 Ok(())
             }
-            Command::Bench(BenchCommand::Ingest { seconds, json }) => {
+            Command::Bench(BenchCommand::Ingest { seconds, durability, json }) => {
                 if !(seconds > 0.0 && seconds.is_finite()) {
                     anyhow::bail!("--seconds must be a positive number, not {seconds}");
                 }
-                let v = learner::bench::ingest(seconds).await?;
+                use agent::config::Durability;
+                let modes = match durability.as_str() {
+                    "both" => vec![Durability::None, Durability::Ack],
+                    other => vec![parse_durability(other).map_err(anyhow::Error::msg)?],
+                };
+                let v = learner::bench::ingest(seconds, &modes).await?;
                 print_result(&v, json);
                 Ok(())
             }

@@ -3,6 +3,13 @@
 //! Transitions are formed per (actor, environment) stream, with n-step returns when configured;
 //! eviction is FIFO, bounded both in transitions and in bytes. Sampling is uniform, or
 //! proportional to priority (Schaul et al. 2016) with importance weights.
+//!
+//! Streams interleave, so transitions are not in frame order: a slow stream's transition can sit
+//! behind newer ones while its observation frame is the oldest in the ring. Each frame slot
+//! therefore remembers the transition that observes it, and when the ring overwrites a frame that
+//! transition is retired on the spot (a tombstone in the FIFO, priority 0); sampling also checks
+//! every frame id it reads against the ring's live range (the generation check). A transition is
+//! never sampled with another frame than its own.
 
 use std::collections::{HashMap, VecDeque};
 
@@ -48,6 +55,9 @@ pub struct StepRecord<'a> {
 /// A transition between two stored frames.
 #[derive(Debug, Clone, Copy, PartialEq)]
 struct Transition {
+    /// Retired because its observation frame was overwritten (a tombstone until it reaches the
+    /// front of the FIFO).
+    dead: bool,
     obs: u64,
     next: u64,
     action: u32,
@@ -93,6 +103,8 @@ pub struct Replay {
     /// Frame ring: `frame_slots` frames; frame id `i` lives in slot `i % frame_slots`.
     frames: Vec<u8>,
     frame_scalars: Vec<RawScalars>,
+    /// Per frame slot: 1 + the id of the transition whose observation it is, or 0.
+    observed_by: Vec<u64>,
     frame_slots: usize,
     /// Ids of the oldest and next frame.
     first_frame: u64,
@@ -101,6 +113,10 @@ pub struct Replay {
     transitions: VecDeque<Transition>,
     /// Transition ids: the front of `transitions` has id `first_transition`.
     first_transition: u64,
+    /// Tombstones in `transitions`.
+    dead: usize,
+    /// Transitions that left the buffer (capacity, byte cap, overwritten frames).
+    evicted: u64,
     streams: HashMap<(String, u32), Stream>,
     priorities: Option<SumTree>,
     max_priority: f32,
@@ -128,11 +144,14 @@ impl Replay {
         Self {
             frames: vec![0; frame_slots * cfg.frame_bytes],
             frame_scalars: vec![RawScalars::default(); frame_slots],
+            observed_by: vec![0; frame_slots],
             frame_slots,
             first_frame: 0,
             next_frame: 0,
             transitions: VecDeque::with_capacity(cfg.capacity.min(1 << 20)),
             first_transition: 0,
+            dead: 0,
+            evicted: 0,
             streams: HashMap::new(),
             priorities,
             max_priority: 1.0,
@@ -141,15 +160,46 @@ impl Replay {
         }
     }
 
-    /// Transitions stored.
+    /// Transitions stored (and sampleable).
     #[must_use]
     pub fn len(&self) -> usize {
-        self.transitions.len()
+        self.transitions.len() - self.dead
     }
 
     #[must_use]
     pub fn is_empty(&self) -> bool {
-        self.transitions.is_empty()
+        self.len() == 0
+    }
+
+    /// Transitions that have left the buffer since it was created: pushed out by the capacity,
+    /// or retired because the byte cap's frame ring overwrote their observation.
+    #[must_use]
+    pub fn evicted(&self) -> u64 {
+        self.evicted
+    }
+
+    /// Id of the next frame to be stored (ids count every frame ever stored).
+    #[must_use]
+    pub fn next_frame_id(&self) -> u64 {
+        self.next_frame
+    }
+
+    /// Id of the oldest frame still held; every older frame, and every transition that observed
+    /// it, is gone.
+    #[must_use]
+    pub fn first_frame_id(&self) -> u64 {
+        self.first_frame
+    }
+
+    /// Forgets where every stream stood.
+    pub fn end_all_streams(&mut self) {
+        self.streams.clear();
+    }
+
+    /// Forgets where the streams of `actor` stood (its session ended): its next steps start
+    /// afresh.
+    pub fn end_streams_of(&mut self, actor: &str) {
+        self.streams.retain(|(a, _), _| a != actor);
     }
 
     /// Capacity in transitions.
@@ -214,9 +264,10 @@ impl Replay {
         }
         stream.pending.pop_front();
         if obs < self.first_frame {
+            self.evicted += 1;
             return 0; // its frame was overwritten already
         }
-        self.push_transition(Transition { obs, next, action, reward, discount: if terminal { 0.0 } else { g } });
+        self.push_transition(Transition { dead: false, obs, next, action, reward, discount: if terminal { 0.0 } else { g } });
         1
     }
 
@@ -226,15 +277,36 @@ impl Replay {
         let fb = self.cfg.frame_bytes;
         self.frames[slot * fb..(slot + 1) * fb].copy_from_slice(image);
         self.frame_scalars[slot] = scalars;
-        self.next_frame += 1;
-        if self.next_frame - self.first_frame > self.frame_slots as u64 {
+        // The frame that lived in this slot is gone: so is the transition that observed it,
+        // wherever it sits in the FIFO (streams interleave, so not necessarily at the front).
+        let observer = std::mem::take(&mut self.observed_by[slot]);
+        if self.next_frame - self.first_frame >= self.frame_slots as u64 {
+            let gone = self.first_frame;
             self.first_frame += 1;
-            // Transitions are in frame order: drop those whose frames are gone.
-            while self.transitions.front().is_some_and(|t| t.obs < self.first_frame) {
-                self.pop_transition();
+            if let Some(tid) = observer.checked_sub(1) {
+                self.retire(tid, gone);
             }
         }
+        self.next_frame += 1;
+        while self.transitions.front().is_some_and(|t| t.dead || t.obs < self.first_frame) {
+            self.pop_transition();
+        }
         id
+    }
+
+    /// Retires transition `tid` if it is still held and observes frame `frame`.
+    fn retire(&mut self, tid: u64, frame: u64) {
+        let Some(k) = tid.checked_sub(self.first_transition).map(|k| k as usize) else { return };
+        let Some(t) = self.transitions.get_mut(k) else { return };
+        if t.dead || t.obs != frame {
+            return;
+        }
+        t.dead = true;
+        self.dead += 1;
+        self.evicted += 1;
+        if let Some(tree) = self.priorities.as_mut() {
+            tree.set((tid % self.cfg.capacity as u64) as usize, 0.0);
+        }
     }
 
     fn push_transition(&mut self, t: Transition) {
@@ -242,6 +314,7 @@ impl Replay {
             self.pop_transition();
         }
         let id = self.first_transition + self.transitions.len() as u64;
+        self.observed_by[(t.obs % self.frame_slots as u64) as usize] = id + 1;
         self.transitions.push_back(t);
         if let Some(tree) = self.priorities.as_mut() {
             tree.set((id % self.cfg.capacity as u64) as usize, self.max_priority.powf(self.cfg.alpha));
@@ -249,7 +322,12 @@ impl Replay {
     }
 
     fn pop_transition(&mut self) {
-        if self.transitions.pop_front().is_some() {
+        if let Some(t) = self.transitions.pop_front() {
+            if t.dead {
+                self.dead -= 1;
+            } else {
+                self.evicted += 1;
+            }
             if let Some(tree) = self.priorities.as_mut() {
                 tree.set((self.first_transition % self.cfg.capacity as u64) as usize, 0.0);
             }
@@ -263,27 +341,58 @@ impl Replay {
         (&self.frames[slot * fb..(slot + 1) * fb], self.frame_scalars[slot])
     }
 
-    /// Samples `n` transitions (with replacement). `None` when the buffer is empty.
-    pub fn sample(&mut self, n: usize) -> Option<Sample> {
-        if self.transitions.is_empty() {
-            return None;
-        }
+    /// Whether frame `id` is still in the ring (its slot has not been reused): the generation
+    /// check every sampled frame passes.
+    fn holds_frame(&self, id: u64) -> bool {
+        id >= self.first_frame && id < self.next_frame
+    }
+
+    /// Position in the FIFO of a live transition, drawn uniformly or by priority, with its
+    /// sampling probability.
+    fn draw(&mut self) -> (usize, f64) {
         let len = self.transitions.len();
-        let mut out = Sample::default();
-        let mut probs = Vec::with_capacity(n);
-        for _ in 0..n {
+        let live = self.len();
+        let cap = self.cfg.capacity as u64;
+        // Tombstones are few (only transitions overtaken by other streams'), so redrawing ends
+        // quickly; a scan bounds it.
+        for _ in 0..64 {
             let (k, p) = match self.priorities.as_ref() {
                 Some(tree) => {
                     let total = tree.total();
                     let u = (self.rng.next_u32() as f64 / (u32::MAX as f64 + 1.0)) * total;
                     let slot = tree.find(u);
-                    let k = (slot as u64 + self.cfg.capacity as u64 - self.first_transition % self.cfg.capacity as u64)
-                        % self.cfg.capacity as u64;
+                    let k = (slot as u64 + cap - self.first_transition % cap) % cap;
                     ((k as usize).min(len - 1), tree.get(slot) as f64 / total)
                 }
-                None => ((self.rng.next_u64() % len as u64) as usize, 1.0 / len as f64),
+                None => ((self.rng.next_u64() % len as u64) as usize, 1.0 / live as f64),
             };
+            if !self.transitions[k].dead {
+                return (k, p);
+            }
+        }
+        let k = self.transitions.iter().position(|t| !t.dead).expect("a live transition exists");
+        (k, 1.0 / live as f64)
+    }
+
+    /// Samples `n` transitions (with replacement). `None` when the buffer is empty.
+    pub fn sample(&mut self, n: usize) -> Option<Sample> {
+        if self.is_empty() {
+            return None;
+        }
+        let len = self.len();
+        let mut out = Sample::default();
+        let mut probs = Vec::with_capacity(n);
+        for _ in 0..n {
+            let (k, p) = self.draw();
             let t = self.transitions[k];
+            assert!(
+                self.holds_frame(t.obs) && self.holds_frame(t.next),
+                "replay: transition {k} refers to frames {}→{} outside the ring [{}, {})",
+                t.obs,
+                t.next,
+                self.first_frame,
+                self.next_frame
+            );
             let (img, sc) = self.frame(t.obs);
             out.images.extend_from_slice(img);
             out.scalars.push(sc);
@@ -367,6 +476,7 @@ impl SumTree {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use rand::RngExt;
 
     fn cfg(capacity: usize) -> ReplayConfig {
         ReplayConfig {
@@ -491,6 +601,71 @@ mod tests {
         assert_eq!(add(&mut r, &kept), 4);
         let s = r.sample(100).unwrap();
         assert!((0..100).all(|i| s.next_images[i * 4] == s.images[i * 4] + 1));
+    }
+
+    /// Several streams interleaved at the byte cap, one of them slow: its transitions sit behind
+    /// newer ones while their frames are the oldest in the ring. No sample may pair a transition
+    /// with a frame that is not its own. Frames carry (stream, t); the transition from t observes
+    /// (s, t) and leads to (s, t + 1).
+    #[test]
+    fn interleaved_streams_at_the_byte_cap_never_sample_an_overwritten_frame() {
+        for prioritized in [false, true] {
+            // 24 frame slots of 4 bytes: the byte cap, not the capacity, binds.
+            let per_frame = frame_cost(4);
+            let cfg = ReplayConfig { frame_bytes: 4, max_bytes: 24 * per_frame + 1000 * TRANSITION_BYTES, prioritized, ..cfg(1000) };
+            let mut r = Replay::new(cfg);
+            assert_eq!(r.frame_slots, 24);
+            let mut t = [0u32; 5];
+            let mut rng = ChaCha8Rng::seed_from_u64(7);
+            let check = |r: &mut Replay| {
+                let Some(s) = r.sample(64) else { return };
+                for i in 0..64 {
+                    let (obs, next) = (&s.images[i * 4..i * 4 + 4], &s.next_images[i * 4..i * 4 + 4]);
+                    assert_eq!(obs[0], next[0], "a transition of stream {} was sampled with stream {}'s frame", next[0], obs[0]);
+                    let (t0, t1) = (u16::from_le_bytes([obs[1], obs[2]]), u16::from_le_bytes([next[1], next[2]]));
+                    assert_eq!(t0 + 1, t1, "stream {}: frames {t0} → {t1}", obs[0]);
+                }
+                if prioritized {
+                    r.update_priorities(&s.slots, &vec![0.5; 64]);
+                }
+            };
+            for round in 0..400 {
+                // Stream 0 is slow (one step in 12 rounds); the others send 1–6 steps at a time.
+                let stream = if round % 12 == 0 { 0 } else { 1 + rng.random_range(0..4usize) };
+                let n = if stream == 0 { 1 } else { rng.random_range(1..=6) };
+                let actor = format!("actor-{stream}");
+                let imgs: Vec<[u8; 4]> = (0..n)
+                    .map(|k| {
+                        let [lo, hi] = ((t[stream] + k) as u16).to_le_bytes();
+                        [stream as u8, lo, hi, 0]
+                    })
+                    .collect();
+                let recs: Vec<StepRecord<'_>> = imgs
+                    .iter()
+                    .enumerate()
+                    .map(|(k, img)| StepRecord {
+                        env: 0,
+                        episode: 0,
+                        t: t[stream] + k as u32,
+                        image: img,
+                        speed: 0.0,
+                        d: 0.0,
+                        path: [0.0; PATH_FEATURES],
+                        action: 0,
+                        reward: 0.0,
+                        terminated: false,
+                        truncated: false,
+                    })
+                    .collect();
+                r.add_steps(&actor, &recs);
+                t[stream] += n;
+                assert!(r.bytes() <= 24 * per_frame + 1000 * TRANSITION_BYTES);
+                check(&mut r);
+            }
+            // Stream 0's transitions were overtaken and retired, and counted as evicted.
+            assert!(r.evicted() > 0);
+            assert!(r.len() <= 23, "{} live transitions over 24 frames", r.len());
+        }
     }
 
     #[test]

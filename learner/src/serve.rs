@@ -1,6 +1,12 @@
 //! `learner serve`: loads or resumes a run, starts the training thread and the gRPC server
 //! (with health, reflection, optional token authentication), writes metrics, and on SIGINT or
 //! SIGTERM stops cleanly with a final checkpoint.
+//!
+//! A fresh run writes a checkpoint before it serves, so that `--resume` always finds one. With
+//! `service.durability = "ack"`, resuming reads the replay log back into the replay and counts the
+//! batches logged after the checkpoint. If the training thread dies (a panic) or the replay log
+//! fails, the learner reports it (log, Status, health NOT_SERVING), acknowledges nothing more,
+//! and `learner serve` exits non-zero: a supervisor restarts it with `--resume`.
 
 use std::collections::VecDeque;
 use std::net::SocketAddr;
@@ -20,8 +26,10 @@ use crate::prometheus::serve_prometheus;
 use crate::replay::{Replay, ReplayConfig};
 use crate::service::LearnerService;
 use crate::state::{PublishedWeights, Shared, TrainStats};
+use crate::versions::VersionLease;
+use crate::wal::ReplayLog;
 use agent::checkpoint::Counters;
-use agent::config::RunConfig;
+use agent::config::{Durability, RunConfig};
 
 /// Options of `learner serve`.
 #[derive(Debug, Clone, Default)]
@@ -48,7 +56,20 @@ pub async fn resolve(addr: &str) -> Result<SocketAddr> {
 pub async fn serve(opts: ServeOptions) -> Result<()> {
     let running = start(opts).await?;
     eprintln!("learner listening on {} (run {} in {})", running.addr, running.shared.run_id, running.run_dir.display());
-    proto::shutdown::signal().await;
+    tokio::select! {
+        () = proto::shutdown::signal() => {}
+        reason = running.failed() => {
+            let run_dir = running.run_dir.clone();
+            // Let status queries see the reason for a moment, then go.
+            tokio::time::sleep(Duration::from_secs(1)).await;
+            let _ = running.stop().await;
+            bail!(
+                "the learner stopped: {reason}; acknowledged batches are in the replay log and the last checkpoint: \
+                 restart with `learner serve --run-dir {} --resume`",
+                run_dir.display()
+            );
+        }
+    }
     tracing::info!("stopping: finishing the current update and writing a checkpoint");
     let run_dir = running.run_dir.clone();
     let path = running.stop().await?;
@@ -69,6 +90,13 @@ pub struct Running {
 }
 
 impl Running {
+    /// Completes, with the reason, once the learner cannot go on (see [`Shared::fail`]).
+    pub async fn failed(&self) -> Arc<str> {
+        let mut rx = self.shared.failure.subscribe();
+        let reason = rx.wait_for(Option::is_some).await.map(|f| f.clone()).ok().flatten();
+        reason.unwrap_or_else(|| "the learner's state was dropped".into())
+    }
+
     /// Stops serving, lets the training thread finish its update, writes the final checkpoint
     /// and flushes the metrics. Returns the checkpoint's path.
     pub async fn stop(self) -> Result<PathBuf> {
@@ -87,6 +115,9 @@ impl Running {
         let trainer = self.trainer;
         let dqn =
             tokio::task::spawn_blocking(move || trainer.join()).await?.map_err(|_| anyhow::anyhow!("the training thread panicked"))??;
+        if let Some(reason) = self.shared.failure() {
+            bail!("the learner stopped: {reason}");
+        }
         let path = crate::train::save_checkpoint(&self.shared, &dqn, &self.run_dir)?;
         self.shared.metrics.interval(&self.shared.train_record())?;
         Ok(path)
@@ -95,6 +126,13 @@ impl Running {
 
 /// Starts the service: loads or resumes the run, starts training and serving.
 pub async fn start(opts: ServeOptions) -> Result<Running> {
+    start_with(opts, crate::train::run).await
+}
+
+/// The training loop a learner runs (tests substitute one that fails).
+type Trainer = fn(&Arc<Shared>, Dqn, &Path) -> Result<Dqn>;
+
+async fn start_with(opts: ServeOptions, train: Trainer) -> Result<Running> {
     let mut cfg = match &opts.config {
         Some(p) => RunConfig::load(p)?,
         None => RunConfig::default(),
@@ -134,12 +172,15 @@ pub async fn start(opts: ServeOptions) -> Result<Running> {
         tracing::info!(learner_step = counters.learner_step, weights_version = counters.weights_version, "resumed");
     } else {
         counters.run_id = new_run_id();
+        // From the first moment, `--resume` finds a checkpoint (and the replay log beside it).
+        checkpoint::save(&run_dir, &dqn, &counters, &cfg.to_toml())
+            .with_context(|| format!("writing the first checkpoint in {}", run_dir.display()))?;
     }
     std::fs::write(run_dir.join("config.toml"), cfg.to_toml()).with_context(|| format!("writing {}/config.toml", run_dir.display()))?;
 
     let frame_bytes = shape.height * shape.width * shape.channels;
     let a = &cfg.agent;
-    let replay = Replay::new(ReplayConfig {
+    let mut replay = Replay::new(ReplayConfig {
         capacity: a.replay_capacity,
         max_bytes: a.replay_max_bytes,
         frame_bytes,
@@ -150,8 +191,13 @@ pub async fn start(opts: ServeOptions) -> Result<Running> {
         beta: a.priority_beta,
         seed: a.seed ^ counters.learner_step,
     });
-    let weights =
-        PublishedWeights { version: counters.weights_version.max(1), bytes: Arc::new(agent::weights::to_safetensors(&dqn.online, "")?) };
+    let log = match cfg.service.durability {
+        Durability::None => None,
+        Durability::Ack => Some(rebuild(&run_dir, &cfg, frame_bytes, &mut replay, &mut counters)?),
+    };
+    let mut versions = VersionLease::open(&run_dir, counters.weights_version)?;
+    let version = versions.next_version().with_context(|| format!("leasing weights versions in {}", run_dir.display()))?;
+    let weights = PublishedWeights { version, bytes: Arc::new(agent::weights::to_safetensors(&dqn.online, "")?) };
     counters.weights_version = weights.version;
     let elapsed_before = counters.elapsed_secs;
     let shared = Arc::new(Shared {
@@ -170,13 +216,20 @@ pub async fn start(opts: ServeOptions) -> Result<Running> {
         data_arrived: (Mutex::new(()), Condvar::new()),
         shutdown: Default::default(),
         elapsed_before,
+        log,
+        versions: Mutex::new(versions),
+        registrations: Default::default(),
+        refused: Default::default(),
+        warned_peers: Default::default(),
+        failure: tokio::sync::watch::Sender::new(None),
+        checkpoint_error: Mutex::new(None),
     });
 
     // Training thread.
     let trainer = {
         let shared = shared.clone();
         let run_dir = run_dir.clone();
-        std::thread::Builder::new().name("train".into()).spawn(move || crate::train::run(&shared, dqn, &run_dir))?
+        std::thread::Builder::new().name("train".into()).spawn(move || supervised_training(&shared, dqn, &run_dir, train))?
     };
 
     // Metrics: rates, train.jsonl, progress in the log, Prometheus.
@@ -204,6 +257,19 @@ pub async fn start(opts: ServeOptions) -> Result<Running> {
     let svc = tonic::service::interceptor::InterceptedService::new(server, auth_interceptor(token));
     let (health_reporter, health) = tonic_health::server::health_reporter();
     health_reporter.set_serving::<LearnerServer<LearnerService>>().await;
+    {
+        // A learner that cannot go on says so to health checks (the whole server and the
+        // learner service), so that orchestrators restart it.
+        let shared = shared.clone();
+        let reporter = health_reporter.clone();
+        tokio::spawn(async move {
+            let mut rx = shared.failure.subscribe();
+            if rx.wait_for(Option::is_some).await.is_ok() {
+                reporter.set_not_serving::<LearnerServer<LearnerService>>().await;
+                reporter.set_service_status("", tonic_health::ServingStatus::NotServing).await;
+            }
+        });
+    }
     tracing::info!(addr = %bound, run_dir = %run_dir.display(), run_id = %shared.run_id, "learner listening");
     let incoming = tokio_stream::wrappers::TcpListenerStream::new(listener);
     let (stop_server, stopped) = tokio::sync::oneshot::channel::<()>();
@@ -228,6 +294,62 @@ pub async fn start(opts: ServeOptions) -> Result<Running> {
         let _ = stopped.await;
     }));
     Ok(Running { addr: bound, run_dir, shared, stop_server, server, trainer })
+}
+
+/// Runs training, turning its end other than by a requested stop (an error or a panic) into a
+/// failure of the learner.
+fn supervised_training(shared: &Arc<Shared>, dqn: Dqn, run_dir: &Path, train: Trainer) -> Result<Dqn> {
+    let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| train(shared, dqn, run_dir)));
+    let reason = match outcome {
+        Ok(Ok(dqn)) if shared.stopping() => return Ok(dqn),
+        Ok(Ok(_)) => "the training thread returned unexpectedly".to_owned(),
+        Ok(Err(e)) => format!("training failed: {e:#}"),
+        Err(panic) => {
+            let what = panic.downcast_ref::<String>().cloned().or_else(|| panic.downcast_ref::<&str>().map(|s| (*s).to_owned()));
+            format!("the training thread panicked: {}", what.unwrap_or_else(|| "(no message)".into()))
+        }
+    };
+    shared.fail(reason.clone());
+    bail!(reason)
+}
+
+/// Opens the replay log of `run_dir`, rebuilding `replay` from it, and adds the batches logged
+/// after the checkpoint (`counters.replay_log_position`) to `counters`.
+fn rebuild(run_dir: &Path, cfg: &RunConfig, frame_bytes: usize, replay: &mut Replay, counters: &mut Counters) -> Result<ReplayLog> {
+    let started = Instant::now();
+    let checkpointed = counters.replay_log_position;
+    let mut after = Counters::default();
+    let (log, found) = ReplayLog::open(run_dir, frame_bytes, cfg.service.replay_log_segment_bytes, checkpointed, |position, record| {
+        let stored = replay.add_steps(record.actor, &record.steps) as u64;
+        if position > checkpointed {
+            let env_steps = record.steps.iter().filter(|s| s.t > 0).count() as u64;
+            after.env_steps += env_steps;
+            after.transitions_received += env_steps;
+            after.transitions_stored += stored;
+            after.episodes += u64::from(record.episodes);
+            after.replay_log_position = position;
+        }
+        replay.next_frame_id()
+    })?;
+    // No actor continues an earlier process's streams.
+    replay.end_all_streams();
+    counters.env_steps += after.env_steps;
+    counters.transitions_received += after.transitions_received;
+    counters.transitions_stored += after.transitions_stored;
+    counters.episodes += after.episodes;
+    counters.replay_log_position = counters.replay_log_position.max(after.replay_log_position).max(found.last_position);
+    log.note_frames(replay.next_frame_id(), replay.first_frame_id());
+    if found.records > 0 {
+        tracing::info!(
+            batches = found.records,
+            segments = found.segments,
+            replay_size = replay.len(),
+            batches_after_checkpoint = found.last_position.saturating_sub(checkpointed),
+            secs = format!("{:.1}", started.elapsed().as_secs_f64()),
+            "replay rebuilt from the replay log"
+        );
+    }
+    Ok(log)
 }
 
 /// The configuration saved with the checkpoint of `run_dir` (verified again, with everything else,
@@ -302,5 +424,60 @@ async fn report_loop(shared: Arc<Shared>) {
                 "progress"
             );
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proto::v1 as pb;
+
+    /// Training that dies (here a panic, as an assertion deep in an update would) does not stop
+    /// silently while data flows in: Status names it, health turns NOT_SERVING, batches are
+    /// refused with UNAVAILABLE, and stopping reports the failure (so `learner serve` exits
+    /// non-zero).
+    #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+    async fn a_dead_training_thread_turns_the_learner_not_serving() {
+        let dir = tempfile::tempdir().unwrap();
+        let cfg_path = dir.path().join("run.toml");
+        std::fs::write(&cfg_path, RunConfig::tiny(&dir.path().join("run")).to_toml()).unwrap();
+        let running = start_with(ServeOptions { config: Some(cfg_path), ..ServeOptions::default() }, |_, _, _| {
+            std::thread::sleep(Duration::from_millis(300));
+            panic!("injected: an update hit a bug")
+        })
+        .await
+        .unwrap();
+        let reason = running.failed().await;
+        assert_eq!(&*reason, "the training thread panicked: injected: an update hit a bug");
+        let addr = format!("http://{}", running.addr);
+        let mut c = proto::v1::learner_client::LearnerClient::connect(addr.clone()).await.unwrap();
+        let st = c.status(pb::StatusRequest {}).await.unwrap().into_inner();
+        assert_eq!(st.training_error, *reason);
+        // Health: both the server and the learner service report NOT_SERVING (the reporter's
+        // task runs beside this one: poll briefly).
+        let channel = tonic::transport::Endpoint::from_shared(addr).unwrap().connect().await.unwrap();
+        let mut health = tonic_health::pb::health_client::HealthClient::new(channel);
+        for service in ["", "hybriddrive.v1.Learner"] {
+            let mut status = 0;
+            for _ in 0..100 {
+                let req = tonic_health::pb::HealthCheckRequest { service: service.into() };
+                status = health.check(req).await.unwrap().into_inner().status;
+                if status == tonic_health::pb::health_check_response::ServingStatus::NotServing as i32 {
+                    break;
+                }
+                tokio::time::sleep(Duration::from_millis(20)).await;
+            }
+            assert_eq!(status, tonic_health::pb::health_check_response::ServingStatus::NotServing as i32, "service {service:?}");
+        }
+        // Data is refused, loudly.
+        let reg = c.register(pb::RegisterRequest { name: "a".into(), envs: 1, protocol: 1 }).await.unwrap().into_inner();
+        let step = pb::Step { obs: Some(pb::Observation { image: vec![0; 256], ..Default::default() }), ..Default::default() };
+        let batch = pb::ExperienceBatch { actor_id: reg.actor_id, seq: 1, steps: vec![step], ..Default::default() };
+        let mut acks = c.stream_experience(tokio_stream::iter(vec![batch])).await.unwrap().into_inner();
+        let refused = acks.message().await.unwrap_err();
+        assert_eq!(refused.code(), tonic::Code::Unavailable);
+        assert!(refused.message().contains("has stopped training (the training thread panicked"), "{}", refused.message());
+        let e = running.stop().await.unwrap_err().to_string();
+        assert!(e.contains("injected"), "{e}");
     }
 }

@@ -1,23 +1,34 @@
-//! The gRPC service (`hybriddrive.v1.Learner`): registration, experience ingestion with
-//! validation, weight distribution and status. A bad batch is refused whole, with a status naming
-//! the problem; it is counted and nothing of it is stored, and no other actor notices.
+//! The gRPC service (`hybriddrive.v1.Learner`): registration, experience ingestion, weight
+//! distribution and status.
+//!
+//! Every stream the learner ends for a reason ends with a status naming it: a batch refused by
+//! validation (`INVALID_ARGUMENT`, or `RESOURCE_EXHAUSTED` for too many steps), a message over
+//! `service.max_message_bytes` (`RESOURCE_EXHAUSTED`) or one that does not decode
+//! (`INVALID_ARGUMENT`), an unknown actor id (`FAILED_PRECONDITION`: register again), a stopping
+//! or failed learner (`UNAVAILABLE`). Refusals are counted (`batches_rejected`, per actor and per
+//! kind) and logged at WARN once per actor and kind. Nothing of a refused batch is stored, and no
+//! other actor notices.
+//!
+//! With `service.durability = "ack"`, a batch is written to the replay log in the order it enters
+//! the replay and acknowledged once the log is synced up to it (group commit: see `wal`).
 
 use std::pin::Pin;
 use std::sync::Arc;
-use std::time::Instant;
+use std::sync::atomic::Ordering;
+use std::time::{Duration, Instant};
 
 use proto::v1 as pb;
 use proto::v1::learner_server::Learner;
 use tokio_stream::{Stream, StreamExt};
-use tonic::{Request, Response, Status, Streaming};
+use tonic::{Code, Request, Response, Status, Streaming};
 
 use crate::records::EpisodeRecord;
 use crate::replay::StepRecord;
 use crate::state::{ActorRecord, EpisodeOutcome, Shared};
-use sim_core::env::PATH_FEATURES;
+use crate::validate::{self, Expect, Reject};
+use crate::wal;
 
-/// Most steps one batch may carry.
-pub const MAX_STEPS_PER_BATCH: usize = 4096;
+pub use crate::validate::MAX_STEPS_PER_BATCH;
 
 /// The service.
 #[derive(Debug, Clone)]
@@ -42,23 +53,34 @@ impl Learner for LearnerService {
             return Err(Status::invalid_argument(format!("envs = {} must be 1..=4096", r.envs)));
         }
         let s = &self.shared;
+        let n = s.registrations.fetch_add(1, Ordering::SeqCst);
         let mut actors = s.actors.lock().expect("actors lock");
-        // An actor that comes back under the same name keeps its index (and exploration rate).
-        let index = actors.iter().find(|a| !r.name.is_empty() && a.name == r.name).map_or(actors.len() as u32, |a| a.index);
-        let id = format!("{}-a{}-{}", s.run_id, index, actors.len());
-        actors.push(ActorRecord {
-            id: id.clone(),
-            name: r.name.clone(),
-            index,
-            envs: r.envs,
-            last_seen: Instant::now(),
-            weights_version: 0,
-            transitions: 0,
-            rejected_batches: 0,
-            epsilon: 1.0,
-            dropped_steps: 0,
-        });
+        // An actor that comes back under the same name (reconnected, or restarted) reuses its
+        // record, index (and so exploration rate) included; its earlier registration ends.
+        let existing = (!r.name.is_empty()).then(|| actors.iter().position(|a| a.name == r.name)).flatten();
+        let index = existing.map_or(actors.len() as u32, |k| actors[k].index);
+        let id = format!("{}-a{}-{}", s.run_id, index, n);
+        let ended = match existing {
+            Some(k) => {
+                let a = &mut actors[k];
+                let old = std::mem::replace(&mut a.id, id.clone());
+                a.envs = r.envs;
+                a.registrations += 1;
+                a.last_seen = Instant::now();
+                a.last_seq = None;
+                a.env_positions = vec![None; r.envs as usize];
+                Some(old)
+            }
+            None => {
+                actors.push(ActorRecord::new(id.clone(), r.name.clone(), index, r.envs));
+                None
+            }
+        };
         drop(actors);
+        if let Some(old) = ended {
+            // The old registration's half-built transitions will never be completed.
+            s.replay.lock().expect("replay lock").end_streams_of(&old);
+        }
         tracing::info!(actor_id = %id, name = %r.name, index, envs = r.envs, "actor registered");
         let env_toml = toml::to_string(&s.cfg.env).map_err(|e| Status::internal(e.to_string()))?;
         let agent_toml = toml::to_string(&s.cfg.agent).map_err(|e| Status::internal(e.to_string()))?;
@@ -70,6 +92,7 @@ impl Learner for LearnerService {
             agent_config_toml: agent_toml,
             weights_version: s.current_weights().version,
             max_message_bytes: s.cfg.service.max_message_bytes as u64,
+            max_batch_steps: MAX_STEPS_PER_BATCH as u32,
         }))
     }
 
@@ -77,25 +100,57 @@ impl Learner for LearnerService {
 
     async fn stream_experience(&self, req: Request<Streaming<pb::ExperienceBatch>>) -> Result<Response<AckStream>, Status> {
         let shared = self.shared.clone();
+        let peer = req.remote_addr().map_or_else(|| "unknown peer".to_owned(), |a| a.ip().to_string());
+        let declared = req.metadata().get(proto::client::ACTOR_ID_HEADER).and_then(|v| v.to_str().ok()).map(str::to_owned);
         let mut incoming = req.into_inner();
         let (tx, rx) = tokio::sync::mpsc::channel(16);
+        // Batches are stored as they arrive; their acknowledgements wait for durability in
+        // order, beside, so that a client with several batches in flight gets them committed
+        // together.
+        let (ordered, mut pending) = tokio::sync::mpsc::channel::<Result<Stored, Status>>(8);
+        {
+            let shared = shared.clone();
+            tokio::spawn(async move {
+                while let Some(item) = pending.recv().await {
+                    let result = match item {
+                        Ok(stored) => acknowledge(&shared, stored).await,
+                        Err(status) => Err(status),
+                    };
+                    let stop = result.is_err();
+                    if tx.send(result).await.is_err() || stop {
+                        break;
+                    }
+                }
+            });
+        }
         tokio::spawn(async move {
+            let mut stream = OpenStream { shared: shared.clone(), record: None };
+            if let Some(id) = &declared {
+                stream.attach(id);
+            }
             while let Some(item) = incoming.next().await {
                 if shared.stopping() {
                     // Refuse new work while stopping: the actor keeps the batch and resends it.
-                    let _ = tx.send(Err(Status::unavailable("the learner is stopping; retry shortly"))).await;
+                    let _ = ordered.send(Err(Status::unavailable("the learner is stopping; retry shortly"))).await;
                     break;
                 }
                 let batch = match item {
                     Ok(b) => b,
                     Err(status) => {
-                        tracing::debug!(%status, "experience stream ended");
+                        if let Some(refusal) = undecodable(&shared, &stream, &peer, &status) {
+                            let _ = ordered.send(Err(refusal)).await;
+                        }
                         break;
                     }
                 };
-                let result = ingest(&shared, &batch);
+                if stream.record.is_none() && !stream.attach(&batch.actor_id) {
+                    tracing::debug!(actor_id = %batch.actor_id, "batch from an unknown actor id: asked to register");
+                    let _ = ordered.send(Err(unknown_actor(&batch.actor_id))).await;
+                    break;
+                }
+                let result = store(&shared, batch);
                 let stop = result.is_err();
-                if tx.send(result).await.is_err() || stop {
+                if ordered.send(result).await.is_err() || stop {
                     break;
                 }
             }
@@ -109,13 +164,101 @@ impl Learner for LearnerService {
         if !r.actor_id.is_empty() {
             touch(&self.shared, &r.actor_id, |a| a.weights_version = r.have_version);
         }
-        let bytes = if r.have_version < w.version { w.bytes.as_ref().clone() } else { Vec::new() };
+        // Any other version than the current one is stale: versions of this run only grow (also
+        // across restarts, see `versions`), and one from another run is no use either.
+        let bytes = if r.have_version != w.version { w.bytes.as_ref().clone() } else { Vec::new() };
         Ok(Response::new(pb::Weights { version: w.version, safetensors: bytes }))
     }
 
     async fn status(&self, _req: Request<pb::StatusRequest>) -> Result<Response<pb::StatusResponse>, Status> {
         Ok(Response::new(status(&self.shared)))
     }
+}
+
+/// An experience stream, counted in its actor's `open_streams` while it lasts.
+struct OpenStream {
+    shared: Arc<Shared>,
+    /// Index of the actor's record.
+    record: Option<usize>,
+}
+
+impl OpenStream {
+    /// Binds the stream to the actor whose current registration is `id`; false if unknown.
+    fn attach(&mut self, id: &str) -> bool {
+        let mut actors = self.shared.actors.lock().expect("actors lock");
+        match actors.iter().position(|a| a.id == id) {
+            Some(k) => {
+                actors[k].open_streams += 1;
+                actors[k].last_seen = Instant::now();
+                self.record = Some(k);
+                true
+            }
+            None => false,
+        }
+    }
+}
+
+impl Drop for OpenStream {
+    fn drop(&mut self) {
+        if let Some(k) = self.record {
+            let mut actors = self.shared.actors.lock().expect("actors lock");
+            actors[k].open_streams = actors[k].open_streams.saturating_sub(1);
+        }
+    }
+}
+
+fn unknown_actor(id: &str) -> Status {
+    Status::failed_precondition(format!(
+        "unknown actor id `{id}`: register first (ids of an earlier registration or learner process are not accepted)"
+    ))
+}
+
+/// Turns a message that could not be received into the refusal to send back, counted and logged,
+/// or `None` when the stream merely ended (the peer went away, reset it, or the connection
+/// broke).
+fn undecodable(shared: &Shared, stream: &OpenStream, peer: &str, status: &Status) -> Option<Status> {
+    let msg = status.message();
+    let transport = msg.starts_with("h2 protocol error") || msg.starts_with("Unexpected EOF");
+    let (kind, refusal) = match status.code() {
+        Code::OutOfRange | Code::ResourceExhausted if !transport => (
+            "too_large",
+            Status::resource_exhausted(format!(
+                "message too large: {msg} (service.max_message_bytes = {}; split batches below it)",
+                shared.cfg.service.max_message_bytes
+            )),
+        ),
+        Code::Internal if !transport => ("undecodable", Status::invalid_argument(format!("undecodable message: {msg}"))),
+        _ => {
+            tracing::debug!(%status, "experience stream ended");
+            return None;
+        }
+    };
+    let counter = if kind == "too_large" { &shared.refused.too_large } else { &shared.refused.undecodable };
+    counter.fetch_add(1, Ordering::Relaxed);
+    shared.counters.lock().expect("counters lock").batches_rejected += 1;
+    let who = stream.record.map(|k| {
+        let mut actors = shared.actors.lock().expect("actors lock");
+        let a = &mut actors[k];
+        a.rejected_batches += 1;
+        (a.id.clone(), a.warned.insert(kind))
+    });
+    let first = match &who {
+        Some((_, first)) => *first,
+        None => {
+            let mut peers = shared.warned_peers.lock().expect("peers lock");
+            if peers.len() > 10_000 {
+                peers.clear();
+            }
+            peers.insert(format!("{peer} {kind}"))
+        }
+    };
+    let actor = who.map_or_else(|| format!("unregistered client at {peer}"), |w| w.0);
+    if first {
+        tracing::warn!(%actor, status = %refusal.message(), "experience stream refused (further refusals of this kind from it: DEBUG)");
+    } else {
+        tracing::debug!(%actor, status = %refusal.message(), "experience stream refused");
+    }
+    Some(refusal)
 }
 
 /// Updates an actor's record if it is known.
@@ -131,91 +274,67 @@ fn touch(shared: &Shared, id: &str, f: impl FnOnce(&mut ActorRecord)) -> bool {
     }
 }
 
-/// Why a batch was refused.
+/// What batches are checked against in this run.
+fn expect(shared: &Shared) -> Expect {
+    Expect {
+        frame_bytes: shared.frame_bytes,
+        width: shared.shape.width,
+        height: shared.shape.height,
+        channels: shared.shape.channels,
+        actions: shared.shape.actions as u32,
+        path_features: shared.cfg.agent.path_features,
+    }
+}
+
+/// A batch in the replay (and written to the log), not yet acknowledged.
 #[derive(Debug)]
-enum Reject {
-    Invalid(String),
-    TooLarge(String),
+struct Stored {
+    batch: pb::ExperienceBatch,
+    stored: u64,
+    /// Its position in the replay log.
+    position: Option<u64>,
+    learner_step: u64,
+    env_steps: u64,
+    first_episode: u64,
 }
 
-/// Checks a whole batch before anything of it is stored.
-fn validate(shared: &Shared, b: &pb::ExperienceBatch) -> Result<(), Reject> {
-    if b.steps.len() > MAX_STEPS_PER_BATCH {
-        return Err(Reject::TooLarge(format!("batch {} has {} steps; at most {MAX_STEPS_PER_BATCH} are accepted", b.seq, b.steps.len())));
-    }
-    let actions = shared.shape.actions as u32;
-    for (i, s) in b.steps.iter().enumerate() {
-        let Some(obs) = &s.obs else {
-            return Err(Reject::Invalid(format!("batch {} step {i}: no observation", b.seq)));
-        };
-        if obs.image.len() != shared.frame_bytes {
-            let (w, h, c) = (shared.shape.width, shared.shape.height, shared.shape.channels);
-            return Err(Reject::Invalid(format!(
-                "batch {} step {i}: image has {} bytes; this run's camera is {w}x{h}x{c} = {} bytes",
-                b.seq,
-                obs.image.len(),
-                shared.frame_bytes
-            )));
-        }
-        if s.t > 0 && s.action >= actions {
-            return Err(Reject::Invalid(format!("batch {} step {i}: action {} is out of range 0..{actions}", b.seq, s.action)));
-        }
-        match obs.path.len() {
-            0 if shared.cfg.agent.path_features => {
-                return Err(Reject::Invalid(format!(
-                    "batch {} step {i}: no path features, and this run's network needs them (agent.path_features = true); \
-                     update the actor",
-                    b.seq
-                )));
+/// Validates one batch and stores it (replay and log), or returns the refusal.
+fn store(shared: &Shared, b: pb::ExperienceBatch) -> Result<Stored, Status> {
+    let checked = {
+        let mut actors = shared.actors.lock().expect("actors lock");
+        let Some(a) = actors.iter_mut().find(|a| a.id == b.actor_id) else { return Err(unknown_actor(&b.actor_id)) };
+        a.last_seen = Instant::now();
+        match validate::check(&expect(shared), a, &b) {
+            Ok(positions) => {
+                validate::accept(a, &b, positions);
+                Ok(())
             }
-            0 | PATH_FEATURES => {}
-            n => {
-                return Err(Reject::Invalid(format!("batch {} step {i}: {n} path features; expected {PATH_FEATURES} or none", b.seq)));
+            Err(reject) => {
+                a.rejected_batches += 1;
+                let kind = if matches!(reject, Reject::TooLarge(_)) { "too_large" } else { "invalid" };
+                Err((reject, a.warned.insert(kind)))
             }
         }
-        let path = obs.path.iter().map(|&v| ("path", v));
-        for (name, v) in [("reward", s.reward), ("speed", obs.speed), ("d", obs.d)].into_iter().chain(path) {
-            if !v.is_finite() {
-                return Err(Reject::Invalid(format!("batch {} step {i}: {name} is {v}, not a finite number", b.seq)));
-            }
-        }
-        if s.terminated && s.truncated {
-            return Err(Reject::Invalid(format!("batch {} step {i}: terminated and truncated at once", b.seq)));
-        }
-    }
-    for (i, e) in b.episodes.iter().enumerate() {
-        if !e.episode_return.is_finite() {
-            return Err(Reject::Invalid(format!(
-                "batch {} episode summary {i}: return is {}, not a finite number",
-                b.seq, e.episode_return
-            )));
-        }
-    }
-    if !(b.epsilon.is_finite() && (0.0..=1.0).contains(&b.epsilon)) {
-        return Err(Reject::Invalid(format!("batch {}: epsilon {} is outside [0, 1]", b.seq, b.epsilon)));
-    }
-    Ok(())
-}
-
-/// Validates and stores one batch; returns its acknowledgement or the refusal.
-fn ingest(shared: &Shared, b: &pb::ExperienceBatch) -> Result<pb::BatchAck, Status> {
-    let known = touch(shared, &b.actor_id, |_| {});
-    if !known {
-        return Err(Status::failed_precondition(format!("unknown actor id `{}`: register first", b.actor_id)));
-    }
-    if let Err(reject) = validate(shared, b) {
+    };
+    if let Err((reject, first)) = checked {
         {
             let mut c = shared.counters.lock().expect("counters lock");
             c.batches_rejected += 1;
             c.transitions_rejected += b.steps.iter().filter(|s| s.t > 0).count() as u64;
         }
-        touch(shared, &b.actor_id, |a| a.rejected_batches += 1);
         let status = match reject {
             Reject::Invalid(m) => Status::invalid_argument(m),
             Reject::TooLarge(m) => Status::resource_exhausted(m),
         };
-        tracing::warn!(actor_id = %b.actor_id, %status, "batch rejected");
+        if first {
+            tracing::warn!(actor_id = %b.actor_id, %status, "batch refused (further refusals of this kind from this actor: DEBUG)");
+        } else {
+            tracing::debug!(actor_id = %b.actor_id, %status, "batch refused");
+        }
         return Err(status);
+    }
+    if let Some(reason) = shared.failure() {
+        return Err(Status::unavailable(format!("the learner has stopped training ({reason}); it acknowledges nothing more")));
     }
     let records: Vec<StepRecord<'_>> = b
         .steps
@@ -237,17 +356,41 @@ fn ingest(shared: &Shared, b: &pb::ExperienceBatch) -> Result<pb::BatchAck, Stat
             }
         })
         .collect();
-    let stored = shared.replay.lock().expect("replay lock").add_steps(&b.actor_id, &records) as u64;
+    let payload = shared.log.as_ref().map(|_| wal::format::encode(&b.actor_id, b.episodes.len() as u32, &records));
     let env_steps = b.steps.iter().filter(|s| s.t > 0).count() as u64;
-    let (learner_step, total_steps, first_episode) = {
+    let (stored, position, learner_step, total_steps, first_episode) = {
+        let mut replay = shared.replay.lock().expect("replay lock");
+        // The log's order is the replay's: append under the replay's lock.
+        let position = match (&shared.log, &payload) {
+            (Some(log), Some(p)) => Some(log.append(p).map_err(|e| refuse_unlogged(shared, &e))?),
+            _ => None,
+        };
+        let stored = replay.add_steps(&b.actor_id, &records) as u64;
+        if let Some(log) = &shared.log {
+            log.note_frames(replay.next_frame_id(), replay.first_frame_id());
+        }
         let mut c = shared.counters.lock().expect("counters lock");
         c.transitions_received += env_steps;
         c.transitions_stored += stored;
         c.env_steps += env_steps;
         let first = c.episodes;
         c.episodes += b.episodes.len() as u64;
-        (c.learner_step, c.env_steps, first)
+        if let Some(p) = position {
+            c.replay_log_position = p;
+        }
+        (stored, position, c.learner_step, c.env_steps, first)
     };
+    shared.data_arrived.1.notify_one();
+    Ok(Stored { batch: b, stored, position, learner_step, env_steps: total_steps, first_episode })
+}
+
+/// Waits until a stored batch is durable (with `durability = "ack"`), then does its bookkeeping
+/// and returns its acknowledgement.
+async fn acknowledge(shared: &Shared, s: Stored) -> Result<pb::BatchAck, Status> {
+    let Stored { batch: b, stored, position, learner_step, env_steps: total_steps, first_episode } = s;
+    if let (Some(log), Some(p)) = (&shared.log, position) {
+        log.durable(p).await.map_err(|e| refuse_unlogged(shared, &e))?;
+    }
     touch(shared, &b.actor_id, |a| {
         a.transitions += stored;
         a.weights_version = b.weights_version;
@@ -278,8 +421,23 @@ fn ingest(shared: &Shared, b: &pb::ExperienceBatch) -> Result<pb::BatchAck, Stat
         arrived: e.arrived,
         collided: !e.collision.is_empty(),
     }));
-    shared.data_arrived.1.notify_one();
-    Ok(pb::BatchAck { seq: b.seq, stored: stored as u32, weights_version: shared.current_weights().version })
+    Ok(pb::BatchAck {
+        seq: b.seq,
+        stored: stored as u32,
+        weights_version: shared.current_weights().version,
+        log_position: position.unwrap_or(0),
+    })
+}
+
+/// A batch that could not be made durable is not acknowledged: `UNAVAILABLE` (the actor keeps it
+/// and retries). A failed sync means the learner cannot promise anything any more.
+fn refuse_unlogged(shared: &Shared, e: &wal::LogError) -> Status {
+    if matches!(e, wal::LogError::Failed(_)) {
+        shared.fail(e.to_string());
+    } else {
+        tracing::error!("{e}: batch not acknowledged");
+    }
+    Status::unavailable(format!("the learner could not make the batch durable: {e}"))
 }
 
 /// The status of the run.
@@ -287,30 +445,33 @@ fn ingest(shared: &Shared, b: &pb::ExperienceBatch) -> Result<pb::BatchAck, Stat
 pub fn status(shared: &Shared) -> pb::StatusResponse {
     let c = shared.counters.lock().expect("counters lock").clone();
     let st = *shared.stats.lock().expect("stats lock");
-    let (replay_size, replay_bytes, capacity) = {
+    let (replay_size, replay_bytes, capacity, evicted) = {
         let r = shared.replay.lock().expect("replay lock");
-        (r.len() as u64, r.bytes(), r.capacity() as u64)
+        (r.len() as u64, r.bytes(), r.capacity() as u64, r.evicted())
     };
+    let log = shared.log.as_ref().map(wal::ReplayLog::stats).unwrap_or_default();
     let version = shared.current_weights().version;
-    let timeout = shared.cfg.service.actor_timeout_secs as f64;
+    let timeout = Duration::from_secs(shared.cfg.service.actor_timeout_secs);
     let actors = shared
         .actors
         .lock()
         .expect("actors lock")
         .iter()
-        .map(|a| {
-            let seen = a.last_seen.elapsed().as_secs_f64();
-            pb::ActorStatus {
-                actor_id: a.id.clone(),
-                name: a.name.clone(),
-                actor_index: a.index,
-                last_seen_secs: seen,
-                weights_version: a.weights_version,
-                version_lag: version.saturating_sub(a.weights_version),
-                transitions: a.transitions,
-                rejected_batches: a.rejected_batches,
-                connected: seen < timeout,
-            }
+        .map(|a| pb::ActorStatus {
+            actor_id: a.id.clone(),
+            name: a.name.clone(),
+            actor_index: a.index,
+            last_seen_secs: a.last_seen.elapsed().as_secs_f64(),
+            weights_version: a.weights_version,
+            // An actor ahead of this learner holds weights of another run: all of this run's are
+            // news to it.
+            version_lag: if a.weights_version <= version { version - a.weights_version } else { version },
+            transitions: a.transitions,
+            rejected_batches: a.rejected_batches,
+            connected: a.connected(timeout),
+            open_streams: a.open_streams,
+            registrations: a.registrations,
+            dropped_steps: a.dropped_steps,
         })
         .collect();
     let window = shared.recent_episodes.lock().expect("episodes lock");
@@ -345,5 +506,15 @@ pub fn status(shared: &Shared) -> pb::StatusResponse {
             sim_core::config::Variant::Hybrid => "hybrid".into(),
             sim_core::config::Variant::EndToEnd => "end_to_end".into(),
         },
+        durability: shared.cfg.service.durability.name().into(),
+        replay_log_bytes: log.bytes,
+        replay_log_segments: log.segments,
+        replay_log_first_position: log.first_position,
+        replay_log_durable_position: log.durable_position,
+        transitions_evicted: evicted,
+        training_error: shared.failure().map(|f| f.to_string()).unwrap_or_default(),
+        checkpoint_error: shared.checkpoint_error.lock().expect("checkpoint error lock").clone().unwrap_or_default(),
+        streams_refused_too_large: shared.refused.too_large.load(Ordering::Relaxed),
+        streams_refused_undecodable: shared.refused.undecodable.load(Ordering::Relaxed),
     }
 }

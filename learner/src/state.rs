@@ -1,14 +1,16 @@
 //! The learner's shared state: what the gRPC handlers, the training thread and the status
 //! reporting all see. Locks are held briefly and never across an update or an await.
 
-use std::collections::VecDeque;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::collections::{HashSet, VecDeque};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Condvar, Mutex, RwLock};
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 use crate::metrics_log::MetricsLog;
 use crate::records::TrainRecord;
 use crate::replay::Replay;
+use crate::versions::VersionLease;
+use crate::wal::ReplayLog;
 use agent::NetShape;
 use agent::checkpoint::Counters;
 use agent::config::RunConfig;
@@ -21,9 +23,12 @@ pub struct PublishedWeights {
     pub bytes: Arc<Vec<u8>>,
 }
 
-/// An actor the learner knows.
+/// An actor the learner knows: one record per name (an actor that registers again under its
+/// name, after a reconnection or a restart, reuses it), one per registration for unnamed ones.
 #[derive(Debug, Clone)]
 pub struct ActorRecord {
+    /// The id of its current registration (sent back in every batch); an earlier registration's
+    /// id is no longer accepted.
     pub id: String,
     pub name: String,
     pub index: u32,
@@ -34,6 +39,53 @@ pub struct ActorRecord {
     pub rejected_batches: u64,
     pub epsilon: f32,
     pub dropped_steps: u64,
+    /// Experience streams of this actor open now.
+    pub open_streams: u32,
+    pub registrations: u64,
+    /// The last batch `seq` accepted in the current registration.
+    pub last_seq: Option<u64>,
+    /// Per environment: (episode, t) of the last step accepted in the current registration.
+    pub env_positions: Vec<Option<(u64, u32)>>,
+    /// Refusal kinds already logged at WARN for this actor (later ones go to DEBUG).
+    pub warned: HashSet<&'static str>,
+}
+
+impl ActorRecord {
+    /// A record for a first registration.
+    #[must_use]
+    pub fn new(id: String, name: String, index: u32, envs: u32) -> Self {
+        Self {
+            id,
+            name,
+            index,
+            envs,
+            last_seen: Instant::now(),
+            weights_version: 0,
+            transitions: 0,
+            rejected_batches: 0,
+            epsilon: 1.0,
+            dropped_steps: 0,
+            open_streams: 0,
+            registrations: 1,
+            last_seq: None,
+            env_positions: vec![None; envs as usize],
+            warned: HashSet::new(),
+        }
+    }
+
+    /// Connected: an experience stream is open and the actor was heard from within `timeout`.
+    #[must_use]
+    pub fn connected(&self, timeout: Duration) -> bool {
+        self.open_streams > 0 && self.last_seen.elapsed() < timeout
+    }
+}
+
+/// Streams the learner ended because of what came over them (also counted in
+/// `batches_rejected`).
+#[derive(Debug, Default)]
+pub struct RefusedStreams {
+    pub too_large: AtomicU64,
+    pub undecodable: AtomicU64,
 }
 
 /// A finished episode, for the rolling statistics.
@@ -77,6 +129,19 @@ pub struct Shared {
     pub shutdown: AtomicBool,
     /// Seconds of earlier sessions of this run (from the checkpoint), for `time_secs` in metrics.
     pub elapsed_before: f64,
+    /// The replay log (`service.durability = "ack"`), or none.
+    pub log: Option<ReplayLog>,
+    /// Hands out weights versions that never go backwards, across restarts too.
+    pub versions: Mutex<VersionLease>,
+    /// Registrations so far (for unique actor ids).
+    pub registrations: AtomicU64,
+    pub refused: RefusedStreams,
+    /// Refusals of clients that never registered, logged at WARN once per (peer, kind).
+    pub warned_peers: Mutex<HashSet<String>>,
+    /// Why training stopped, once it has (the learner then stops serving and exits non-zero).
+    pub failure: tokio::sync::watch::Sender<Option<Arc<str>>>,
+    /// The last failed checkpoint write, while checkpoints are retried.
+    pub checkpoint_error: Mutex<Option<String>>,
 }
 
 impl Shared {
@@ -90,6 +155,30 @@ impl Shared {
     #[must_use]
     pub fn stopping(&self) -> bool {
         self.shutdown.load(Ordering::SeqCst)
+    }
+
+    /// Why training stopped, if it has.
+    #[must_use]
+    pub fn failure(&self) -> Option<Arc<str>> {
+        self.failure.borrow().clone()
+    }
+
+    /// Records that the learner cannot go on (training stopped, or the replay log failed): it is
+    /// logged, Status shows it, health turns NOT_SERVING, nothing more is acknowledged, and
+    /// `learner serve` exits non-zero. The first reason is kept.
+    pub fn fail(&self, reason: impl Into<Arc<str>>) {
+        let reason = reason.into();
+        let first = self.failure.send_if_modified(|f| {
+            if f.is_none() {
+                *f = Some(reason.clone());
+                true
+            } else {
+                false
+            }
+        });
+        if first {
+            tracing::error!(%reason, "the learner cannot go on: reporting NOT_SERVING and stopping");
+        }
     }
 
     /// The newest weights.

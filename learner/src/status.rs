@@ -33,6 +33,18 @@ pub fn to_json(s: &pb::StatusResponse) -> serde_json::Value {
             "completion_rate": ep.completion_rate,
             "collision_rate": ep.collision_rate,
         },
+        "reliability": {
+            "durability": s.durability,
+            "replay_log_bytes": s.replay_log_bytes,
+            "replay_log_segments": s.replay_log_segments,
+            "replay_log_first_position": s.replay_log_first_position,
+            "replay_log_durable_position": s.replay_log_durable_position,
+            "transitions_evicted": s.transitions_evicted,
+            "streams_refused_too_large": s.streams_refused_too_large,
+            "streams_refused_undecodable": s.streams_refused_undecodable,
+            "training_error": s.training_error,
+            "checkpoint_error": s.checkpoint_error,
+        },
         "actors": s.actors.iter().map(|a| json!({
             "actor_id": a.actor_id,
             "name": a.name,
@@ -43,6 +55,9 @@ pub fn to_json(s: &pb::StatusResponse) -> serde_json::Value {
             "version_lag": a.version_lag,
             "transitions": a.transitions,
             "rejected_batches": a.rejected_batches,
+            "open_streams": a.open_streams,
+            "registrations": a.registrations,
+            "dropped_steps": a.dropped_steps,
         })).collect::<Vec<_>>(),
     })
 }
@@ -66,6 +81,22 @@ pub fn print_table(s: &pb::StatusResponse) {
         s.transitions_rejected,
         s.batches_rejected
     );
+    println!(
+        "durability {}   replay log {:.1} MiB in {} segments, durable to position {}   evicted {}   refused streams: {} too large, {} undecodable",
+        s.durability,
+        s.replay_log_bytes as f64 / (1 << 20) as f64,
+        s.replay_log_segments,
+        s.replay_log_durable_position,
+        s.transitions_evicted,
+        s.streams_refused_too_large,
+        s.streams_refused_undecodable
+    );
+    if !s.training_error.is_empty() {
+        println!("TRAINING STOPPED: {}", s.training_error);
+    }
+    if !s.checkpoint_error.is_empty() {
+        println!("checkpoint failing (retried): {}", s.checkpoint_error);
+    }
     println!(
         "episodes {} — last {}: mean return {:.2}, completed {:.0}%, collided {:.0}%",
         ep.episodes_total,

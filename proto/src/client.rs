@@ -19,6 +19,10 @@ pub const CONNECTION_WINDOW: u32 = 16 << 20;
 /// `service.max_message_bytes`).
 pub const CLIENT_MAX_MESSAGE_BYTES: usize = 256 << 20;
 
+/// Request metadata key an actor sets on `StreamExperience` to its actor id, so that the learner
+/// knows whose stream it is before the first batch arrives (and when a batch cannot be decoded).
+pub const ACTOR_ID_HEADER: &str = "x-actor-id";
+
 /// A client of the learner service that sends the auth token, if any.
 pub type Client = LearnerClient<InterceptedService<Channel, TokenInterceptor>>;
 

@@ -15,6 +15,10 @@ pub struct Counters {
     pub episodes: u64,
     pub weights_version: u64,
     pub elapsed_secs: f64,
+    /// Position in the replay log of the last batch these counters include (0: none, or no log).
+    /// On resume, batches after it are counted again from the log. Absent from older checkpoints.
+    #[serde(default)]
+    pub replay_log_position: u64,
 }
 
 /// `state.json`.

@@ -30,22 +30,27 @@ impl View {
         Self { offset: self.offset, rows: self.cols, cols: self.rows, row_stride: self.col_stride, col_stride: self.row_stride }
     }
 
-    /// One past the largest index the view touches (`offset` when empty).
-    fn end(&self) -> usize {
+    /// One past the largest index the view touches (`offset` when empty), or `None` when that
+    /// index does not fit a `usize`: such a view cannot lie inside any slice. Checked arithmetic,
+    /// so that release builds (which wrap on overflow) cannot be fooled by a view whose end
+    /// wraps around to a small number.
+    fn end(&self) -> Option<usize> {
         if self.rows == 0 || self.cols == 0 {
-            self.offset
+            Some(self.offset)
         } else {
-            self.offset + (self.rows - 1) * self.row_stride + (self.cols - 1) * self.col_stride + 1
+            let last_row = (self.rows - 1).checked_mul(self.row_stride)?;
+            let last_col = (self.cols - 1).checked_mul(self.col_stride)?;
+            self.offset.checked_add(last_row)?.checked_add(last_col)?.checked_add(1)
         }
     }
 
-    /// Whether distinct (i, j) address distinct elements (required of a destination).
+    /// Whether distinct (i, j) address distinct elements (required of a destination). A product
+    /// that overflows counts as "no": such a view is refused, never trusted.
     fn is_one_to_one(&self) -> bool {
         let (r, c) = (self.rows, self.cols);
-        r <= 1 && (c <= 1 || self.col_stride > 0)
-            || c <= 1 && self.row_stride > 0
-            || self.col_stride > 0 && self.row_stride >= c * self.col_stride
-            || self.row_stride > 0 && self.col_stride >= r * self.row_stride
+        let rows_clear_cols = self.col_stride > 0 && c.checked_mul(self.col_stride).is_some_and(|span| self.row_stride >= span);
+        let cols_clear_rows = self.row_stride > 0 && r.checked_mul(self.row_stride).is_some_and(|span| self.col_stride >= span);
+        r <= 1 && (c <= 1 || self.col_stride > 0) || c <= 1 && self.row_stride > 0 || rows_clear_cols || cols_clear_rows
     }
 }
 
@@ -58,9 +63,10 @@ impl View {
 #[allow(clippy::too_many_arguments)]
 pub fn matmul(dst: &mut [f32], d: View, accumulate: bool, lhs: &[f32], l: View, rhs: &[f32], r: View, threads: usize) {
     assert!(l.rows == d.rows && r.cols == d.cols && l.cols == r.rows, "matmul shapes: {d:?} = {l:?} · {r:?}");
-    assert!(d.end() <= dst.len(), "destination view {d:?} leaves a slice of {}", dst.len());
-    assert!(l.end() <= lhs.len(), "left view {l:?} leaves a slice of {}", lhs.len());
-    assert!(r.end() <= rhs.len(), "right view {r:?} leaves a slice of {}", rhs.len());
+    let inside = |v: View, len: usize| v.end().is_some_and(|end| end <= len);
+    assert!(inside(d, dst.len()), "destination view {d:?} leaves a slice of {}", dst.len());
+    assert!(inside(l, lhs.len()), "left view {l:?} leaves a slice of {}", lhs.len());
+    assert!(inside(r, rhs.len()), "right view {r:?} leaves a slice of {}", rhs.len());
     assert!(d.is_one_to_one(), "destination view {d:?} addresses an element twice");
     if d.rows == 0 || d.cols == 0 {
         return;
@@ -149,6 +155,37 @@ mod tests {
         let a = vec![0f32; 10];
         let mut out = vec![0f32; 4];
         matmul(&mut out, View::rows(0, 2, 2, 2), false, &a, View::rows(0, 2, 6, 6), &a, View::rows(0, 6, 2, 2), 1);
+    }
+
+    /// A view whose end overflows `usize`: unchecked, `offset + (rows-1)·row_stride + …` wraps
+    /// (release builds) to a small number that passes the bounds check, and gemm would write far
+    /// outside the slice. (Debug builds panicked on the overflow itself, with another message.)
+    #[test]
+    #[should_panic(expected = "destination view")]
+    fn a_destination_whose_end_overflows_is_refused() {
+        let a = vec![0f32; 4];
+        let mut out = vec![0f32; 4];
+        // end = 0 + 1·2^63 + 1·2^63 + 1 wraps to 1, which fits a slice of 4.
+        let huge = 1usize << (usize::BITS - 1);
+        let d = View { offset: 0, rows: 2, cols: 2, row_stride: huge, col_stride: huge };
+        matmul(&mut out, d, false, &a, View::rows(0, 2, 1, 1), &a, View::rows(0, 1, 2, 2), 1);
+    }
+
+    #[test]
+    fn overflowing_views_are_neither_inside_nor_one_to_one() {
+        let huge = 1usize << (usize::BITS - 1);
+        // rows·row_stride wraps to 0.
+        let v = View { offset: 3, rows: 3, cols: 1, row_stride: huge, col_stride: 1 };
+        assert_eq!(v.end(), None);
+        // (0, 1) and (1, 0) are the same element; unchecked, 2·2^63 wraps to 0 and the view
+        // passed as one-to-one.
+        let w = View { offset: 0, rows: 2, cols: 2, row_stride: huge, col_stride: huge };
+        assert!(!w.is_one_to_one());
+        assert_eq!(w.end(), None);
+        // Ordinary views are unaffected.
+        assert_eq!(View::rows(5, 40, 9, 3).end(), Some(5 + 39 * 3 + 8 + 1));
+        assert!(View::rows(0, 3, 4, 4).is_one_to_one());
+        assert_eq!(View::rows(7, 0, 3, 3).end(), Some(7));
     }
 
     #[test]

@@ -210,6 +210,7 @@ mod tests {
             // serde_json 1.0's default parser reads this value's shortest decimal back one ulp off
             // (about one random value in ten is): `elapsed_secs_bits` keeps it exact.
             elapsed_secs: 3969.3421758078052,
+            replay_log_position: 17,
         }
     }
 
