@@ -217,13 +217,18 @@ pub async fn start(opts: ServeOptions) -> Result<Running> {
         .http2_keepalive_timeout(Some(std::time::Duration::from_secs(20)))
         .add_service(health)
         .add_service(svc);
+    // Server reflection in both protocol revisions: `grpc.reflection.v1` (grpcurl, current
+    // clients) and `grpc.reflection.v1alpha`, which many stock clients still speak only (grpcio's
+    // Python `ProtoReflectionDescriptorDatabase`, older grpcurl builds, GUI clients).
     #[cfg(feature = "reflection")]
-    let router = router.add_service(
-        tonic_reflection::server::Builder::configure()
-            .register_encoded_file_descriptor_set(proto::v1::FILE_DESCRIPTOR_SET)
-            .register_encoded_file_descriptor_set(tonic_health::pb::FILE_DESCRIPTOR_SET)
-            .build_v1()?,
-    );
+    let router = {
+        let reflection = || {
+            tonic_reflection::server::Builder::configure()
+                .register_encoded_file_descriptor_set(proto::v1::FILE_DESCRIPTOR_SET)
+                .register_encoded_file_descriptor_set(tonic_health::pb::FILE_DESCRIPTOR_SET)
+        };
+        router.add_service(reflection().build_v1()?).add_service(reflection().build_v1alpha()?)
+    };
     let server = tokio::spawn(router.serve_with_incoming_shutdown(incoming, async move {
         let _ = stopped.await;
     }));
