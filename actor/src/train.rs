@@ -90,8 +90,9 @@ pub async fn run(args: &TrainArgs) -> Result<()> {
         args.envs,
         args.run_dir.display()
     );
-    eprintln!("Ctrl-C stops: a checkpoint is written and the same command resumes.");
     let exe = std::env::current_exe().context("locating this program to start actors")?;
+    eprintln!("status, from another terminal: {}", status_command(&exe, &args.run_dir));
+    eprintln!("Ctrl-C stops: a checkpoint is written and the same command resumes.");
     let mut children: Vec<Child> = Vec::new();
     for k in 0..args.actors {
         let log = std::fs::File::create(args.run_dir.join(format!("actor-{k}.log")))?;
@@ -174,6 +175,33 @@ pub async fn run(args: &TrainArgs) -> Result<()> {
     Ok(())
 }
 
+/// The command that prints this run's status, ready to paste in the same directory: the `learner`
+/// program beside this one (`cargo build --release` builds both into target/release/), relative
+/// to the working directory when it is below it, and `--run-dir`, which finds the port through
+/// RUN_DIR/server.addr.
+fn status_command(exe: &std::path::Path, run_dir: &std::path::Path) -> String {
+    let learner = exe.with_file_name("learner");
+    let program = if learner.exists() {
+        let cwd = std::env::current_dir().unwrap_or_default();
+        match learner.strip_prefix(&cwd) {
+            Ok(rel) => format!("./{}", rel.display()),
+            Err(_) => learner.display().to_string(),
+        }
+    } else {
+        "learner".to_owned()
+    };
+    format!("{} status --run-dir {}", shell_word(&program), shell_word(&run_dir.display().to_string()))
+}
+
+/// `s` quoted for a POSIX shell when it needs to be.
+fn shell_word(s: &str) -> String {
+    if !s.is_empty() && s.chars().all(|c| c.is_ascii_alphanumeric() || "-_./:=@+,".contains(c)) {
+        s.to_owned()
+    } else {
+        format!("'{}'", s.replace('\'', r"'\''"))
+    }
+}
+
 /// The configuration file to start a new run with: `--config` as given, or — when `--preset` or
 /// `--seed` ask for more — the effective configuration written to `RUN_DIR/requested-config.toml`.
 fn requested_config(args: &TrainArgs) -> Result<Option<PathBuf>> {
@@ -192,4 +220,30 @@ fn requested_config(args: &TrainArgs) -> Result<Option<PathBuf>> {
     let path = args.run_dir.join("requested-config.toml");
     std::fs::write(&path, cfg.to_toml()).with_context(|| format!("writing {}", path.display()))?;
     Ok(Some(path))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::path::Path;
+
+    #[test]
+    fn the_status_command_names_the_learner_beside_this_program_and_the_run_dir() {
+        let dir = tempfile::tempdir().unwrap();
+        let exe = dir.path().join("actor");
+        // No learner program beside it: the bare name (on PATH, e.g. in the container image).
+        assert_eq!(status_command(&exe, Path::new("runs/train")), "learner status --run-dir runs/train");
+        std::fs::write(dir.path().join("learner"), b"").unwrap();
+        // Beside it, outside the working directory (the temporary directory): its absolute path.
+        let want = format!("{} status --run-dir runs/train", dir.path().join("learner").display());
+        assert_eq!(status_command(&exe, Path::new("runs/train")), want);
+        assert_eq!(status_command(Path::new("/nowhere/actor"), Path::new("my runs/a")), "learner status --run-dir 'my runs/a'");
+    }
+
+    #[test]
+    fn shell_words_are_quoted_only_when_needed() {
+        assert_eq!(shell_word("./target/release/learner"), "./target/release/learner");
+        assert_eq!(shell_word("it's"), r"'it'\''s'");
+        assert_eq!(shell_word(""), "''");
+    }
 }

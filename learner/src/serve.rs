@@ -194,7 +194,7 @@ pub async fn start(opts: ServeOptions) -> Result<Running> {
     let listener =
         tokio::net::TcpListener::bind(addr).await.with_context(|| format!("binding gRPC address {addr} (service.listen / --listen)"))?;
     let bound = listener.local_addr()?;
-    std::fs::write(run_dir.join("server.addr"), bound.to_string())?;
+    std::fs::write(run_dir.join(crate::status::ADDR_FILE), bound.to_string())?;
     let max = cfg.service.max_message_bytes;
     let server = LearnerServer::new(LearnerService { shared: shared.clone() })
         .max_decoding_message_size(max)
