@@ -2,6 +2,7 @@
 //! `fastnet`), writes checkpoints, publishes weights to actors and reports status and metrics.
 //! What the agent is (network, weights files, configuration, inputs) lives in the `agent` crate.
 
+pub mod auth;
 pub mod bench;
 pub mod checkpoint;
 pub mod dqn;

@@ -201,7 +201,7 @@ pub async fn start(opts: ServeOptions) -> Result<Running> {
         .max_encoding_message_size(max)
         .accept_compressed(CompressionEncoding::Zstd)
         .send_compressed(CompressionEncoding::Zstd);
-    let svc = tonic::service::interceptor::InterceptedService::new(server, auth_interceptor(token));
+    let svc = tonic::service::interceptor::InterceptedService::new(server, crate::auth::interceptor(token));
     let (health_reporter, health) = tonic_health::server::health_reporter();
     health_reporter.set_serving::<LearnerServer<LearnerService>>().await;
     tracing::info!(addr = %bound, run_dir = %run_dir.display(), run_id = %shared.run_id, "learner listening");
@@ -251,20 +251,6 @@ fn checkpoint_config_text(run_dir: &Path) -> Result<String> {
 fn new_run_id() -> String {
     let t = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).unwrap_or_default();
     format!("run-{}-{:04x}", t.as_secs(), (t.subsec_nanos() >> 8) & 0xffff)
-}
-
-/// Refuses calls without the shared token (when one is configured).
-#[allow(clippy::result_large_err)]
-fn auth_interceptor(token: Option<String>) -> impl Fn(tonic::Request<()>) -> Result<tonic::Request<()>, tonic::Status> + Clone {
-    let expected = token.map(|t| format!("Bearer {t}"));
-    move |req: tonic::Request<()>| {
-        let Some(expected) = &expected else { return Ok(req) };
-        match req.metadata().get("authorization").and_then(|v| v.to_str().ok()) {
-            Some(v) if v == expected => Ok(req),
-            Some(_) => Err(tonic::Status::unauthenticated("wrong auth token")),
-            None => Err(tonic::Status::unauthenticated("this learner requires an auth token: send `authorization: Bearer TOKEN`")),
-        }
-    }
 }
 
 /// Every second: rates; every 10 s: a train.jsonl line and a progress log line.
