@@ -94,8 +94,16 @@ pub async fn run(args: &TrainArgs) -> Result<()> {
     eprintln!("status, from another terminal: {}", status_command(&exe, &args.run_dir));
     eprintln!("Ctrl-C stops: a checkpoint is written and the same command resumes.");
     let mut children: Vec<Child> = Vec::new();
+    let session = format!(
+        "==== {} {} run {}: actor {{k}} of {}, {} environments, learner {addr} ====",
+        humantime::format_rfc3339_seconds(std::time::SystemTime::now()),
+        if resume { "resumed" } else { "started" },
+        running.shared.run_id,
+        args.actors,
+        args.envs
+    );
     for k in 0..args.actors {
-        let log = std::fs::File::create(args.run_dir.join(format!("actor-{k}.log")))?;
+        let log = open_actor_log(&args.run_dir.join(format!("actor-{k}.log")), &session.replace("{k}", &k.to_string()))?;
         let seed = args.seed.map_or(k as u64, |s| s.wrapping_mul(64).wrapping_add(k as u64));
         let child = Command::new(&exe)
             .args(["--learner", &addr, "--envs", &args.envs.to_string(), "--id", &format!("local-{k}"), "--seed", &seed.to_string()])
@@ -107,30 +115,8 @@ pub async fn run(args: &TrainArgs) -> Result<()> {
         children.push(child);
     }
 
-    let shared = running.shared.clone();
-    let progress = tokio::spawn(async move {
-        let start = Instant::now();
-        loop {
-            tokio::time::sleep(Duration::from_secs(2)).await;
-            let s = learner::service::status(&shared);
-            let ep = s.episodes.unwrap_or_default();
-            let connected = s.actors.iter().filter(|a| a.connected).count();
-            eprintln!(
-                "[{:>6.0}s] env steps {:>8}  ({:>5.0}/s)  episodes {:>6}  mean return {:>7.2}  completed {:>3.0}%  updates {:>6} ({:.2}/s)  weights v{}  replay {}  actors {}",
-                start.elapsed().as_secs_f64(),
-                s.transitions_received,
-                s.env_steps_per_sec,
-                ep.episodes_total,
-                ep.mean_return,
-                100.0 * ep.completion_rate,
-                s.learner_step,
-                s.updates_per_sec,
-                s.weights_version,
-                s.replay_size,
-                connected
-            );
-        }
-    });
+    let reporter = std::sync::Arc::new(learner::progress::Reporter::stderr());
+    let progress = tokio::spawn(learner::serve::progress_loop(running.shared.clone(), reporter.clone(), Duration::from_secs(2)));
 
     let shared = running.shared.clone();
     let budget_spent = async move {
@@ -148,6 +134,7 @@ pub async fn run(args: &TrainArgs) -> Result<()> {
         () = budget_spent => eprintln!("time budget of {:.1} min spent", args.max_minutes.unwrap_or_default()),
     }
     progress.abort();
+    reporter.finish();
     eprintln!("stopping: actors flush, the learner writes a checkpoint…");
     // Actors in the terminal's process group got the Ctrl-C too; make sure of it for SIGTERM.
     for c in &children {
@@ -173,6 +160,19 @@ pub async fn run(args: &TrainArgs) -> Result<()> {
         s.learner_step
     );
     Ok(())
+}
+
+/// Opens an actor's log for appending (earlier sessions' logs are kept) and writes the session's
+/// header line.
+fn open_actor_log(path: &std::path::Path, header: &str) -> Result<std::fs::File> {
+    use std::io::Write;
+    let mut file = std::fs::OpenOptions::new()
+        .create(true)
+        .append(true)
+        .open(path)
+        .with_context(|| format!("opening actor log {}", path.display()))?;
+    writeln!(file, "{header}").with_context(|| format!("writing actor log {}", path.display()))?;
+    Ok(file)
 }
 
 /// The command that prints this run's status, ready to paste in the same directory: the `learner`
@@ -238,6 +238,19 @@ mod tests {
         let want = format!("{} status --run-dir runs/train", dir.path().join("learner").display());
         assert_eq!(status_command(&exe, Path::new("runs/train")), want);
         assert_eq!(status_command(Path::new("/nowhere/actor"), Path::new("my runs/a")), "learner status --run-dir 'my runs/a'");
+    }
+
+    #[test]
+    fn actor_logs_are_appended_with_a_header_per_session() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("actor-0.log");
+        {
+            use std::io::Write;
+            let mut f = open_actor_log(&path, "==== session 1 ====").unwrap();
+            writeln!(f, "first session's line").unwrap();
+        }
+        drop(open_actor_log(&path, "==== session 2 ====").unwrap());
+        assert_eq!(std::fs::read_to_string(&path).unwrap(), "==== session 1 ====\nfirst session's line\n==== session 2 ====\n");
     }
 
     #[test]

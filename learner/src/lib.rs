@@ -9,6 +9,7 @@ pub mod dqn;
 pub mod metrics_log;
 #[cfg(feature = "plot")]
 pub mod plot;
+pub mod progress;
 pub mod prometheus;
 pub mod records;
 pub mod replay;

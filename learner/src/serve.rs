@@ -16,6 +16,7 @@ use tonic::codec::CompressionEncoding;
 use crate::checkpoint;
 use crate::dqn::Dqn;
 use crate::metrics_log::MetricsLog;
+use crate::progress::RateMeter;
 use crate::prometheus::serve_prometheus;
 use crate::replay::{Replay, ReplayConfig};
 use crate::service::LearnerService;
@@ -48,7 +49,12 @@ pub async fn resolve(addr: &str) -> Result<SocketAddr> {
 pub async fn serve(opts: ServeOptions) -> Result<()> {
     let running = start(opts).await?;
     eprintln!("learner listening on {} (run {} in {})", running.addr, running.shared.run_id, running.run_dir.display());
+    eprintln!("status, from another terminal: learner status --run-dir {}", running.run_dir.display());
+    let reporter = Arc::new(crate::progress::Reporter::stderr());
+    let progress = tokio::spawn(progress_loop(running.shared.clone(), reporter.clone(), Duration::from_secs(10)));
     proto::shutdown::signal().await;
+    progress.abort();
+    reporter.finish();
     tracing::info!("stopping: finishing the current update and writing a checkpoint");
     let run_dir = running.run_dir.clone();
     let path = running.stop().await?;
@@ -179,7 +185,7 @@ pub async fn start(opts: ServeOptions) -> Result<Running> {
         std::thread::Builder::new().name("train".into()).spawn(move || crate::train::run(&shared, dqn, &run_dir))?
     };
 
-    // Metrics: rates, train.jsonl, progress in the log, Prometheus.
+    // Metrics: rates, train.jsonl, Prometheus.
     tokio::spawn(report_loop(shared.clone()));
     if let Some(m) = &opts.metrics_listen {
         let addr = resolve(m).await?;
@@ -253,45 +259,49 @@ fn new_run_id() -> String {
     format!("run-{}-{:04x}", t.as_secs(), (t.subsec_nanos() >> 8) & 0xffff)
 }
 
-/// Every second: rates; every 10 s: a train.jsonl line and a progress log line.
+/// Every second: this session's rates (over the last 10 s of counters); every 10 s: a
+/// train.jsonl line.
 async fn report_loop(shared: Arc<Shared>) {
-    let mut last = (Instant::now(), 0u64, 0u64);
+    let counters = || {
+        let c = shared.counters.lock().expect("counters lock");
+        (c.learner_step, c.env_steps)
+    };
+    let session = Instant::now();
+    let (mut update_rate, mut step_rate) = (RateMeter::new(10.0), RateMeter::new(10.0));
+    let (updates, steps) = counters();
+    update_rate.push(0.0, updates);
+    step_rate.push(0.0, steps);
     let mut tick = 0u64;
     loop {
         tokio::time::sleep(Duration::from_secs(1)).await;
         if shared.stopping() {
             return;
         }
-        let (updates, steps) = {
-            let c = shared.counters.lock().expect("counters lock");
-            (c.learner_step, c.env_steps)
-        };
-        let dt = last.0.elapsed().as_secs_f64().max(1e-3);
+        let (updates, steps) = counters();
+        let t = session.elapsed().as_secs_f64();
+        update_rate.push(t, updates);
+        step_rate.push(t, steps);
         {
             let mut s = shared.stats.lock().expect("stats lock");
-            s.updates_per_sec = 0.7 * s.updates_per_sec + 0.3 * updates.saturating_sub(last.1) as f64 / dt;
-            s.env_steps_per_sec = 0.7 * s.env_steps_per_sec + 0.3 * steps.saturating_sub(last.2) as f64 / dt;
+            s.updates_per_sec = update_rate.rate();
+            s.env_steps_per_sec = step_rate.rate();
             s.epsilon = f64::from(shared.cfg.epsilon(0, steps));
         }
-        last = (Instant::now(), updates, steps);
         tick += 1;
-        if tick.is_multiple_of(10) {
-            if let Err(err) = shared.metrics.interval(&shared.train_record()) {
-                tracing::warn!(%err, "writing train.jsonl");
-            }
-            let st = crate::service::status(&shared);
-            let ep = st.episodes.unwrap_or_default();
-            tracing::info!(
-                env_steps = steps,
-                episodes = ep.episodes_total,
-                mean_return = format!("{:.2}", ep.mean_return),
-                updates = updates,
-                updates_per_sec = format!("{:.1}", st.updates_per_sec),
-                weights_version = st.weights_version,
-                replay = st.replay_size,
-                actors = st.actors.iter().filter(|a| a.connected).count(),
-                "progress"
-            );
+        if tick.is_multiple_of(10)
+            && let Err(err) = shared.metrics.interval(&shared.train_record())
+        {
+            tracing::warn!(%err, "writing train.jsonl");
         }
+    }
+}
+
+/// Shows the progress line (`crate::progress`) every `every` until aborted.
+pub async fn progress_loop(shared: Arc<Shared>, reporter: Arc<crate::progress::Reporter>, every: Duration) {
+    let session = Instant::now();
+    loop {
+        tokio::time::sleep(every).await;
+        let status = crate::service::status(&shared);
+        reporter.update(&crate::progress::line(session.elapsed().as_secs_f64(), &status));
     }
 }

@@ -83,3 +83,24 @@ def learner(tmp_path):
     running = Learner(tmp_path)
     yield running
     running.stop()
+
+
+class TrainedRun:
+    """`actor train` on the tiny configuration, run twice as a user resumes it: 15 s, then to a
+    24 s budget. Keeps each session's stderr."""
+
+    def __init__(self, tmp):
+        self.run_dir = tmp / "run"
+        config = tmp / "tiny.toml"
+        config.write_text(TINY_TOML)
+        self.sessions = []
+        for extra in (["--config", str(config), "--max-minutes", "0.25"], ["--max-minutes", "0.4"]):
+            done = subprocess.run([binary("actor"), "train", "--run-dir", str(self.run_dir), *extra],
+                                  stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=300)
+            assert done.returncode == 0, done.stderr
+            self.sessions.append(done.stderr)
+
+
+@pytest.fixture(scope="session")
+def trained_run(tmp_path_factory):
+    return TrainedRun(tmp_path_factory.mktemp("trained"))
