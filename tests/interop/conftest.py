@@ -57,6 +57,7 @@ def wait_for_file(path, proc, secs=60):
 
 class Learner:
     def __init__(self, tmp, extra=()):
+        tmp.mkdir(parents=True, exist_ok=True)
         self.run_dir = tmp / "run"
         self.config = tmp / "tiny.toml"
         self.config.write_text(TINY_TOML)
