@@ -17,4 +17,5 @@ pub mod serve;
 pub mod service;
 pub mod state;
 pub mod status;
+pub mod tfevents;
 pub mod train;
