@@ -8,6 +8,7 @@ mod episode;
 mod eval;
 mod greedy;
 mod policy;
+mod predict;
 mod record;
 mod routes;
 mod run;
@@ -61,6 +62,10 @@ enum Command {
     /// Evaluate checkpoints greedily on the paper's seven routes beside the model-based baseline
     /// (the paper's Table I).
     Eval(eval::EvalArgs),
+    /// A checkpoint's Q values for one observation (a route's step, or a frame with its scalars),
+    /// with a summary of the network's inputs: for checking a checkpoint loaded elsewhere
+    /// (docs/MODEL.md).
+    Predict(predict::PredictArgs),
     /// Benchmarks.
     #[command(subcommand)]
     Bench(bench::BenchCommand),
@@ -80,11 +85,12 @@ fn main() -> Result<()> {
         }
         Some(Command::Drive(args)) => drive::run(&args),
         Some(Command::Eval(args)) => eval::run(&args),
+        Some(Command::Predict(args)) => predict::run(&args),
         Some(Command::Bench(cmd)) => bench::run(&cmd),
         None => {
             let Some(learner) = cli.learner else {
                 anyhow::bail!(
-                    "nothing to do: give --learner ADDR to run as an actor, or a subcommand (train, eval, drive, bench); see --help"
+                    "nothing to do: give --learner ADDR to run as an actor, or a subcommand (train, eval, drive, predict, bench); see --help"
                 );
             };
             let name = cli.id.unwrap_or_else(|| format!("{}-{}", hostname(), std::process::id()));

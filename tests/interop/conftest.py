@@ -56,11 +56,11 @@ def wait_for_file(path, proc, secs=60):
 
 
 class Learner:
-    def __init__(self, tmp, extra=()):
+    def __init__(self, tmp, extra=(), config=TINY_TOML):
         tmp.mkdir(parents=True, exist_ok=True)
         self.run_dir = tmp / "run"
         self.config = tmp / "tiny.toml"
-        self.config.write_text(TINY_TOML)
+        self.config.write_text(config)
         self.log = open(tmp / "learner.log", "w")
         self.proc = subprocess.Popen(
             [binary("learner"), "serve", "--config", str(self.config), "--listen", "127.0.0.1:0",
