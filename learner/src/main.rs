@@ -85,8 +85,9 @@ enum Command {
         #[arg(long, default_value_t = 50)]
         smoothing: usize,
     },
-    /// Print the effective configuration as TOML: the defaults, or FILE completed with defaults
-    /// and validated (a starting point for `serve --config`).
+    /// Print the effective configuration as TOML with a comment on every field (meaning, unit,
+    /// default): the defaults, or FILE completed with defaults and validated (a starting point
+    /// for `serve --config`).
     Config {
         /// A configuration file to validate and complete.
         #[arg(long, conflicts_with = "preset")]
@@ -230,7 +231,7 @@ fn main() -> Result<()> {
                     (None, Some(name)) => agent::config::RunConfig::preset(&name).map_err(|e| anyhow::anyhow!("--preset: {e}"))?,
                     (None, None) => agent::config::RunConfig::default(),
                 };
-                print!("{}", cfg.to_toml());
+                print!("{}", agent::config_docs::commented_toml(&cfg));
                 Ok(())
             }
             Command::Plot { run_dirs, out, smoothing } => {
