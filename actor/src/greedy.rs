@@ -94,6 +94,12 @@ pub fn greedy_actions(agent: &mut GreedyAgent, envs: &[&Env]) -> Vec<u32> {
     agent.net.greedy(envs.iter().map(|e| e.image().data.as_slice()), &scalars)
 }
 
+/// The Q values (one per action) of one observation: an image (`H × W × C` bytes, as the camera
+/// renders it) and the network's scalar inputs (`agent::features::scalar_features`).
+pub fn q_values(agent: &mut GreedyAgent, image: &[u8], scalars: &[f32]) -> Vec<f32> {
+    agent.net.q_values([image], scalars).to_vec()
+}
+
 /// The greedy action of `agent` in `env`.
 pub fn greedy_action(agent: &mut GreedyAgent, env: &Env) -> Action {
     agent.actions[greedy_actions(agent, &[env])[0] as usize]

@@ -8,6 +8,7 @@ mod episode;
 mod eval;
 mod greedy;
 mod policy;
+mod predict;
 mod record;
 mod routes;
 mod run;
@@ -66,6 +67,10 @@ enum Command {
     /// Evaluate checkpoints greedily on the paper's seven routes beside the model-based baseline
     /// (the paper's Table I).
     Eval(eval::EvalArgs),
+    /// A checkpoint's Q values for one observation (a route's step, or a frame with its scalars),
+    /// with a summary of the network's inputs: for checking a checkpoint loaded elsewhere
+    /// (docs/MODEL.md).
+    Predict(predict::PredictArgs),
     /// Benchmarks.
     #[command(subcommand)]
     Bench(bench::BenchCommand),
@@ -74,6 +79,8 @@ enum Command {
 fn main() -> Result<()> {
     tracing_subscriber::fmt()
         .with_writer(std::io::stderr)
+        // Colour only on a terminal: logs redirected to files (actor-K.log) stay plain text.
+        .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
         .with_env_filter(tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "info".into()))
         .init();
     let cli = Cli::parse();
@@ -83,11 +90,12 @@ fn main() -> Result<()> {
         }
         Some(Command::Drive(args)) => drive::run(&args),
         Some(Command::Eval(args)) => eval::run(&args),
+        Some(Command::Predict(args)) => predict::run(&args),
         Some(Command::Bench(cmd)) => bench::run(&cmd),
         None => {
             let Some(learner) = cli.learner else {
                 anyhow::bail!(
-                    "nothing to do: give --learner ADDR to run as an actor, or a subcommand (train, eval, drive, bench); see --help"
+                    "nothing to do: give --learner ADDR to run as an actor, or a subcommand (train, eval, drive, predict, bench); see --help"
                 );
             };
             let name = cli.id.unwrap_or_else(|| format!("{}-{}", hostname(), std::process::id()));

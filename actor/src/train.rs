@@ -104,11 +104,20 @@ pub async fn run(args: &TrainArgs) -> Result<()> {
         args.envs,
         args.run_dir.display()
     );
-    eprintln!("Ctrl-C stops: a checkpoint is written and the same command resumes.");
     let exe = std::env::current_exe().context("locating this program to start actors")?;
+    eprintln!("status, from another terminal: {}", status_command(&exe, &args.run_dir));
+    eprintln!("Ctrl-C stops: a checkpoint is written and the same command resumes.");
     let mut children: Vec<Child> = Vec::new();
+    let session = format!(
+        "==== {} {} run {}: actor {{k}} of {}, {} environments, learner {addr} ====",
+        humantime::format_rfc3339_seconds(std::time::SystemTime::now()),
+        if resume { "resumed" } else { "started" },
+        running.shared.run_id,
+        args.actors,
+        args.envs
+    );
     for k in 0..args.actors {
-        let log = std::fs::File::create(args.run_dir.join(format!("actor-{k}.log")))?;
+        let log = open_actor_log(&args.run_dir.join(format!("actor-{k}.log")), &session.replace("{k}", &k.to_string()))?;
         let seed = args.seed.map_or(k as u64, |s| s.wrapping_mul(64).wrapping_add(k as u64));
         let child = Command::new(&exe)
             .args(["--learner", &addr, "--envs", &args.envs.to_string(), "--id", &format!("local-{k}"), "--seed", &seed.to_string()])
@@ -120,33 +129,12 @@ pub async fn run(args: &TrainArgs) -> Result<()> {
         children.push(child);
     }
 
-    let shared = running.shared.clone();
-    let progress = tokio::spawn(async move {
-        let start = Instant::now();
-        loop {
-            tokio::time::sleep(Duration::from_secs(2)).await;
-            let s = learner::service::status(&shared);
-            let ep = s.episodes.unwrap_or_default();
-            let connected = s.actors.iter().filter(|a| a.connected).count();
-            eprintln!(
-                "[{:>6.0}s] env steps {:>8}  ({:>5.0}/s)  episodes {:>6}  mean return {:>7.2}  completed {:>3.0}%  updates {:>6} ({:.2}/s)  weights v{}  replay {}  actors {}",
-                start.elapsed().as_secs_f64(),
-                s.transitions_received,
-                s.env_steps_per_sec,
-                ep.episodes_total,
-                ep.mean_return,
-                100.0 * ep.completion_rate,
-                s.learner_step,
-                s.updates_per_sec,
-                s.weights_version,
-                s.replay_size,
-                connected
-            );
-        }
-    });
+    let reporter = std::sync::Arc::new(learner::progress::Reporter::stderr());
+    let progress = tokio::spawn(learner::serve::progress_loop(running.shared.clone(), reporter.clone(), Duration::from_secs(2)));
 
     let evaluations = (args.eval_every > 0.0).then(|| {
-        tokio::spawn(periodic_evaluation(running.shared.clone(), Duration::from_secs_f64(args.eval_every * 60.0), args.eval_runs))
+        let every = Duration::from_secs_f64(args.eval_every * 60.0);
+        tokio::spawn(periodic_evaluation(running.shared.clone(), every, args.eval_runs, reporter.clone()))
     });
 
     let shared = running.shared.clone();
@@ -171,6 +159,7 @@ pub async fn run(args: &TrainArgs) -> Result<()> {
     if let Some(e) = evaluations {
         e.abort();
     }
+    reporter.finish();
     eprintln!("stopping: actors flush, the learner writes a checkpoint…");
     // Actors in the terminal's process group got the Ctrl-C too; make sure of it for SIGTERM.
     for c in &children {
@@ -200,7 +189,12 @@ pub async fn run(args: &TrainArgs) -> Result<()> {
 
 /// Every `every`, drives the learner's current weights greedily on the default town's seven routes
 /// (`runs` runs each, fixed seeds) and records the result in `eval.jsonl`; until aborted.
-async fn periodic_evaluation(shared: std::sync::Arc<learner::state::Shared>, every: Duration, runs: u32) {
+async fn periodic_evaluation(
+    shared: std::sync::Arc<learner::state::Shared>,
+    every: Duration,
+    runs: u32,
+    reporter: std::sync::Arc<learner::progress::Reporter>,
+) {
     /// Seeds of the periodic evaluations: apart from `actor eval`'s default 0.., the same each time.
     const SEED: u64 = 10_000;
     loop {
@@ -240,13 +234,13 @@ async fn periodic_evaluation(shared: std::sync::Arc<learner::state::Shared>, eve
                 .map(|r| EvalRouteRecord { route: r.route.into(), completed: r.completed, mean_return: r.mean_return })
                 .collect(),
         };
-        eprintln!(
+        reporter.println(&format!(
             "[eval {:>5.1} min] greedy on the 7 routes ({runs} runs each): {}/7 route types completed in at least half their runs, {:.0}% of runs, mean return {:.1}",
             time_secs / 60.0,
             record.route_types_mastered,
             100.0 * record.completion_rate,
             record.mean_return
-        );
+        ));
         if let Err(e) = shared.metrics.eval(&record) {
             tracing::warn!("writing eval.jsonl: {e}");
         }
@@ -256,6 +250,46 @@ async fn periodic_evaluation(shared: std::sync::Arc<learner::state::Shared>, eve
 /// The preset of `actor train` without --config or --preset: the configuration that learns fastest
 /// on a CPU (docs/RESULTS.md); the paper's own is `--preset paper`.
 const DEFAULT_PRESET: &str = "hybrid-tuned";
+
+/// Opens an actor's log for appending (earlier sessions' logs are kept) and writes the session's
+/// header line.
+fn open_actor_log(path: &std::path::Path, header: &str) -> Result<std::fs::File> {
+    use std::io::Write;
+    let mut file = std::fs::OpenOptions::new()
+        .create(true)
+        .append(true)
+        .open(path)
+        .with_context(|| format!("opening actor log {}", path.display()))?;
+    writeln!(file, "{header}").with_context(|| format!("writing actor log {}", path.display()))?;
+    Ok(file)
+}
+
+/// The command that prints this run's status, ready to paste in the same directory: the `learner`
+/// program beside this one (`cargo build --release` builds both into target/release/), relative
+/// to the working directory when it is below it, and `--run-dir`, which finds the port through
+/// RUN_DIR/server.addr.
+fn status_command(exe: &std::path::Path, run_dir: &std::path::Path) -> String {
+    let learner = exe.with_file_name("learner");
+    let program = if learner.exists() {
+        let cwd = std::env::current_dir().unwrap_or_default();
+        match learner.strip_prefix(&cwd) {
+            Ok(rel) => format!("./{}", rel.display()),
+            Err(_) => learner.display().to_string(),
+        }
+    } else {
+        "learner".to_owned()
+    };
+    format!("{} status --run-dir {}", shell_word(&program), shell_word(&run_dir.display().to_string()))
+}
+
+/// `s` quoted for a POSIX shell when it needs to be.
+fn shell_word(s: &str) -> String {
+    if !s.is_empty() && s.chars().all(|c| c.is_ascii_alphanumeric() || "-_./:=@+,".contains(c)) {
+        s.to_owned()
+    } else {
+        format!("'{}'", s.replace('\'', r"'\''"))
+    }
+}
 
 /// The configuration file to start a new run with: `--config` as given, or — when `--preset` or
 /// `--seed` ask for more — the effective configuration written to `RUN_DIR/requested-config.toml`.
@@ -279,4 +313,43 @@ fn requested_config(args: &TrainArgs) -> Result<Option<PathBuf>> {
     let path = args.run_dir.join("requested-config.toml");
     std::fs::write(&path, cfg.to_toml()).with_context(|| format!("writing {}", path.display()))?;
     Ok(Some(path))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::path::Path;
+
+    #[test]
+    fn the_status_command_names_the_learner_beside_this_program_and_the_run_dir() {
+        let dir = tempfile::tempdir().unwrap();
+        let exe = dir.path().join("actor");
+        // No learner program beside it: the bare name (on PATH, e.g. in the container image).
+        assert_eq!(status_command(&exe, Path::new("runs/train")), "learner status --run-dir runs/train");
+        std::fs::write(dir.path().join("learner"), b"").unwrap();
+        // Beside it, outside the working directory (the temporary directory): its absolute path.
+        let want = format!("{} status --run-dir runs/train", dir.path().join("learner").display());
+        assert_eq!(status_command(&exe, Path::new("runs/train")), want);
+        assert_eq!(status_command(Path::new("/nowhere/actor"), Path::new("my runs/a")), "learner status --run-dir 'my runs/a'");
+    }
+
+    #[test]
+    fn actor_logs_are_appended_with_a_header_per_session() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("actor-0.log");
+        {
+            use std::io::Write;
+            let mut f = open_actor_log(&path, "==== session 1 ====").unwrap();
+            writeln!(f, "first session's line").unwrap();
+        }
+        drop(open_actor_log(&path, "==== session 2 ====").unwrap());
+        assert_eq!(std::fs::read_to_string(&path).unwrap(), "==== session 1 ====\nfirst session's line\n==== session 2 ====\n");
+    }
+
+    #[test]
+    fn shell_words_are_quoted_only_when_needed() {
+        assert_eq!(shell_word("./target/release/learner"), "./target/release/learner");
+        assert_eq!(shell_word("it's"), r"'it'\''s'");
+        assert_eq!(shell_word(""), "''");
+    }
 }

@@ -8,6 +8,7 @@
 
 pub mod checkpoint;
 pub mod config;
+pub mod config_docs;
 pub mod fastnet;
 pub mod features;
 pub mod presets;

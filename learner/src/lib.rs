@@ -2,12 +2,14 @@
 //! `fastnet`), writes checkpoints, publishes weights to actors and reports status and metrics.
 //! What the agent is (network, weights files, configuration, inputs) lives in the `agent` crate.
 
+pub mod auth;
 pub mod bench;
 pub mod checkpoint;
 pub mod dqn;
 pub mod metrics_log;
 #[cfg(feature = "plot")]
 pub mod plot;
+pub mod progress;
 pub mod prometheus;
 pub mod records;
 pub mod replay;
@@ -15,6 +17,7 @@ pub mod serve;
 pub mod service;
 pub mod state;
 pub mod status;
+pub mod tfevents;
 pub mod train;
 pub mod validate;
 pub mod versions;

@@ -41,11 +41,17 @@ enum Command {
         #[arg(long)]
         auth_token_file: Option<PathBuf>,
     },
-    /// Print a learner's status.
+    /// Print a learner's status: give its address, or the run directory of a learner on this
+    /// machine (`learner serve --run-dir DIR` or `actor train --run-dir DIR`, which write the
+    /// address they listen on to DIR/server.addr).
+    #[command(group = clap::ArgGroup::new("target").required(true).args(["addr", "run_dir"]))]
     Status {
         /// The learner's address, host:port or http://host:port.
         #[arg(long)]
-        addr: String,
+        addr: Option<String>,
+        /// A local run directory: the address is read from DIR/server.addr.
+        #[arg(long, value_name = "DIR")]
+        run_dir: Option<PathBuf>,
         /// Print one JSON object on the last line of stdout.
         #[arg(long)]
         json: bool,
@@ -79,8 +85,9 @@ enum Command {
         #[arg(long, default_value_t = 50)]
         smoothing: usize,
     },
-    /// Print the effective configuration as TOML: the defaults, or FILE completed with defaults
-    /// and validated (a starting point for `serve --config`).
+    /// Print the effective configuration as TOML with a comment on every field (meaning, unit,
+    /// default): the defaults, or FILE completed with defaults and validated (a starting point
+    /// for `serve --config`).
     Config {
         /// A configuration file to validate and complete.
         #[arg(long, conflicts_with = "preset")]
@@ -184,6 +191,8 @@ fn print_result(v: &serde_json::Value, json: bool) {
 fn main() -> Result<()> {
     tracing_subscriber::fmt()
         .with_writer(std::io::stderr)
+        // Colour only on a terminal: logs redirected to files (actor-K.log) stay plain text.
+        .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
         .with_env_filter(tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "info".into()))
         .init();
     let cli = Cli::parse();
@@ -193,9 +202,25 @@ fn main() -> Result<()> {
             Command::Serve { config, listen, run_dir, resume, metrics_listen, auth_token_file } => {
                 serve(ServeOptions { config, listen, run_dir, resume, metrics_listen, auth_token_file }).await
             }
-            Command::Status { addr, json, auth_token_file } => {
+            Command::Status { addr, run_dir, json, auth_token_file } => {
                 let token = auth_token_file.as_deref().map(proto::client::read_token).transpose()?;
-                let mut client = proto::client::connect(&addr, token).await?;
+                let (addr, from) = match (addr, run_dir) {
+                    (Some(addr), _) => (addr, None),
+                    (None, Some(dir)) => (status::addr_from_run_dir(&dir)?, Some(dir)),
+                    (None, None) => unreachable!("clap requires --addr or --run-dir"),
+                };
+                let mut client = match proto::client::connect(&addr, token).await {
+                    Ok(c) => c,
+                    Err(e) => match from {
+                        Some(dir) => {
+                            return Err(anyhow::Error::new(e).context(format!(
+                                "no learner answers at {addr}, the address in {}: is the run still going?",
+                                dir.join(status::ADDR_FILE).display()
+                            )));
+                        }
+                        None => return Err(e.into()),
+                    },
+                };
                 let s = client
                     .status(proto::v1::StatusRequest {})
                     .await
@@ -222,7 +247,7 @@ fn main() -> Result<()> {
                     (None, Some(name)) => agent::config::RunConfig::preset(&name).map_err(|e| anyhow::anyhow!("--preset: {e}"))?,
                     (None, None) => agent::config::RunConfig::default(),
                 };
-                print!("{}", cfg.to_toml());
+                print!("{}", agent::config_docs::commented_toml(&cfg));
                 Ok(())
             }
             Command::Plot { run_dirs, out, smoothing } => {

@@ -1,63 +1,132 @@
-//! The Prometheus text exposition of the learner's state, served over HTTP on
-//! `--metrics-listen`.
+//! The learner's metrics for Prometheus, encoded by `prometheus-client` (the Prometheus project's
+//! Rust client) and served at `/metrics` on `--metrics-listen` by axum — the HTTP stack tonic
+//! already compiles in. Values are read from the shared state at each scrape (a [`Collector`]), so
+//! nothing is kept twice. Dashboards (`deploy/grafana/`) and alerts use these names.
 
-use tokio::io::{AsyncReadExt, AsyncWriteExt};
+use std::sync::Arc;
+
+use axum::http::header;
+use axum::response::IntoResponse;
+use prometheus_client::collector::Collector;
+use prometheus_client::encoding::{DescriptorEncoder, EncodeMetric};
+use prometheus_client::metrics::counter::ConstCounter;
+use prometheus_client::metrics::gauge::ConstGauge;
+use prometheus_client::registry::Registry;
 
 use crate::state::Shared;
 
-/// The Prometheus text exposition of the learner's state.
+/// Reads the learner's state at every scrape.
+#[derive(Debug)]
+struct LearnerCollector(Arc<Shared>);
+
+impl Collector for LearnerCollector {
+    fn encode(&self, mut enc: DescriptorEncoder) -> Result<(), std::fmt::Error> {
+        let shared = &self.0;
+        let c = shared.counters.lock().expect("counters lock").clone();
+        let s = *shared.stats.lock().expect("stats lock");
+        let (replay_size, replay_bytes) = {
+            let r = shared.replay.lock().expect("replay lock");
+            (r.len() as i64, r.bytes() as i64)
+        };
+        let status = crate::service::status(shared);
+        let episodes = status.episodes.unwrap_or_default();
+        let connected: Vec<_> = status.actors.iter().filter(|a| a.connected).collect();
+        let mean_lag = if connected.is_empty() {
+            f64::NAN
+        } else {
+            connected.iter().map(|a| a.version_lag as f64).sum::<f64>() / connected.len() as f64
+        };
+
+        // Counters: the encoder adds `_total` to each name.
+        for (name, help, value) in [
+            ("learner_updates", "DQN updates done.", c.learner_step),
+            ("learner_env_steps", "Environment steps received.", c.env_steps),
+            ("learner_transitions_received", "Transitions received from actors.", c.transitions_received),
+            ("learner_transitions_stored", "Transitions stored in replay.", c.transitions_stored),
+            ("learner_transitions_rejected", "Transitions rejected as invalid.", c.transitions_rejected),
+            ("learner_batches_rejected", "Batches rejected as invalid.", c.batches_rejected),
+            ("learner_episodes", "Episodes finished by actors.", c.episodes),
+        ] {
+            let m = ConstCounter::new(value);
+            m.encode(enc.encode_descriptor(name, help, None, m.metric_type())?)?;
+        }
+        for (name, help, value) in [
+            ("learner_weights_version", "Version of the newest published weights.", c.weights_version as i64),
+            ("learner_replay_size", "Transitions in replay.", replay_size),
+            ("learner_replay_bytes", "Bytes used by replay.", replay_bytes),
+            ("learner_actors_connected", "Actors seen within the timeout.", connected.len() as i64),
+        ] {
+            let m = ConstGauge::new(value);
+            m.encode(enc.encode_descriptor(name, help, None, m.metric_type())?)?;
+        }
+        for (name, help, value) in [
+            ("learner_updates_per_second", "DQN updates per second over the last 10 s.", s.updates_per_sec),
+            ("learner_env_steps_per_second", "Environment steps per second over the last 10 s.", s.env_steps_per_sec),
+            ("learner_loss", "Recent mean Huber loss (NaN before training).", s.loss.unwrap_or(f64::NAN)),
+            ("learner_mean_q", "Recent mean Q of the actions taken (NaN before training).", s.mean_q.unwrap_or(f64::NAN)),
+            ("learner_epsilon", "Exploration rate of the schedule.", s.epsilon),
+            ("learner_episode_return_mean", "Mean return of the recent episodes (service.stats_window).", episodes.mean_return),
+            ("learner_episode_completion_rate", "Share of the recent episodes that reached their goal.", episodes.completion_rate),
+            ("learner_episode_collision_rate", "Share of the recent episodes that ended in a collision.", episodes.collision_rate),
+            ("learner_weights_lag_mean", "Mean versions the connected actors' weights are behind (NaN without actors).", mean_lag),
+            ("learner_uptime_seconds", "Seconds since this learner process started.", shared.started.elapsed().as_secs_f64()),
+            ("learner_run_seconds", "Seconds the run has trained, over all its sessions.", shared.run_secs()),
+        ] {
+            let m = ConstGauge::new(value);
+            m.encode(enc.encode_descriptor(name, help, None, m.metric_type())?)?;
+        }
+        // Per actor: how far behind its weights are.
+        let m = ConstGauge::new(0i64);
+        let mut family = enc.encode_descriptor(
+            "learner_actor_weights_lag",
+            "Versions an actor's weights are behind the newest (connected actors).",
+            None,
+            m.metric_type(),
+        )?;
+        for a in &connected {
+            let labels = [("actor", a.name.as_str())];
+            ConstGauge::new(a.version_lag as i64).encode(family.encode_family(&labels)?)?;
+        }
+        Ok(())
+    }
+}
+
+/// A registry holding the learner's metrics.
 #[must_use]
-pub fn prometheus_text(shared: &Shared) -> String {
-    let c = shared.counters.lock().expect("counters lock").clone();
-    let s = *shared.stats.lock().expect("stats lock");
-    let (replay_size, replay_bytes) = {
-        let r = shared.replay.lock().expect("replay lock");
-        (r.len(), r.bytes())
-    };
-    let actors = shared.actors.lock().expect("actors lock");
-    let timeout = shared.cfg.service.actor_timeout_secs as f64;
-    let connected = actors.iter().filter(|a| a.last_seen.elapsed().as_secs_f64() < timeout).count();
+pub fn registry(shared: Arc<Shared>) -> Registry {
+    let mut registry = Registry::default();
+    registry.register_collector(Box::new(LearnerCollector(shared)));
+    registry
+}
+
+/// The Prometheus text exposition (format 0.0.4) of the learner's state.
+#[must_use]
+pub fn prometheus_text(registry: &Registry) -> String {
     let mut out = String::new();
-    let mut metric = |name: &str, kind: &str, help: &str, value: f64| {
-        out.push_str(&format!("# HELP {name} {help}\n# TYPE {name} {kind}\n{name} {value}\n"));
-    };
-    metric("learner_updates_total", "counter", "DQN updates done.", c.learner_step as f64);
-    metric("learner_env_steps_total", "counter", "Environment steps received.", c.env_steps as f64);
-    metric("learner_transitions_received_total", "counter", "Transitions received from actors.", c.transitions_received as f64);
-    metric("learner_transitions_stored_total", "counter", "Transitions stored in replay.", c.transitions_stored as f64);
-    metric("learner_transitions_rejected_total", "counter", "Transitions rejected as invalid.", c.transitions_rejected as f64);
-    metric("learner_batches_rejected_total", "counter", "Batches rejected as invalid.", c.batches_rejected as f64);
-    metric("learner_episodes_total", "counter", "Episodes finished by actors.", c.episodes as f64);
-    metric("learner_weights_version", "gauge", "Version of the newest published weights.", c.weights_version as f64);
-    metric("learner_replay_size", "gauge", "Transitions in replay.", replay_size as f64);
-    metric("learner_replay_bytes", "gauge", "Bytes used by replay.", replay_bytes as f64);
-    metric("learner_updates_per_second", "gauge", "Recent DQN updates per second.", s.updates_per_sec);
-    metric("learner_env_steps_per_second", "gauge", "Recent environment steps per second.", s.env_steps_per_sec);
-    metric("learner_loss", "gauge", "Recent mean Huber loss.", s.loss.unwrap_or(f64::NAN));
-    metric("learner_mean_q", "gauge", "Recent mean Q of the actions taken.", s.mean_q.unwrap_or(f64::NAN));
-    metric("learner_epsilon", "gauge", "Exploration rate of the schedule.", s.epsilon);
-    metric("learner_actors_connected", "gauge", "Actors seen within the timeout.", connected as f64);
-    metric("learner_uptime_seconds", "gauge", "Seconds since this learner process started.", shared.started.elapsed().as_secs_f64());
+    prometheus_client::encoding::prometheus_text::encode(&mut out, registry).expect("writing to a String cannot fail");
     out
 }
 
-/// Serves the Prometheus text on every HTTP request to `listener` until the process ends.
-pub async fn serve_prometheus(listener: tokio::net::TcpListener, shared: std::sync::Arc<Shared>) {
-    loop {
-        let Ok((mut sock, _)) = listener.accept().await else { continue };
-        let shared = shared.clone();
-        tokio::spawn(async move {
-            // Read (and ignore) the request head; answer with the metrics whatever the path.
-            let mut buf = [0u8; 2048];
-            let _ = tokio::time::timeout(std::time::Duration::from_secs(2), sock.read(&mut buf)).await;
-            let body = prometheus_text(&shared);
-            let head = format!(
-                "HTTP/1.1 200 OK\r\nContent-Type: text/plain; version=0.0.4\r\nContent-Length: {}\r\nConnection: close\r\n\r\n",
-                body.len()
-            );
-            let _ = sock.write_all(head.as_bytes()).await;
-            let _ = sock.write_all(body.as_bytes()).await;
-            let _ = sock.shutdown().await;
-        });
+/// Serves `/metrics` over HTTP on `listener` until the process ends.
+pub async fn serve_prometheus(listener: tokio::net::TcpListener, shared: Arc<Shared>) {
+    let registry = Arc::new(registry(shared));
+    let metrics = move || {
+        let registry = registry.clone();
+        async move {
+            (
+                [
+                    (header::CONTENT_TYPE, prometheus_client::encoding::prometheus_text::CONTENT_TYPE),
+                    // One scrape per connection: scrapers reconnect every interval anyway, and
+                    // simple clients (nc, a raw socket) see the end of the answer.
+                    (header::CONNECTION, "close"),
+                ],
+                prometheus_text(&registry),
+            )
+                .into_response()
+        }
+    };
+    let app = axum::Router::new().route("/metrics", axum::routing::get(metrics));
+    if let Err(err) = axum::serve(listener, app).await {
+        tracing::warn!(%err, "the metrics server stopped");
     }
 }

@@ -69,8 +69,9 @@ pub struct EpisodeRecord {
     pub env_steps: u64,
 }
 
-/// One reporting interval of the learner: a line of `train.jsonl`.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+/// One reporting interval of the learner: a line of `train.jsonl` (and the scalars of its
+/// TensorBoard events, `crate::tfevents`).
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
 pub struct TrainRecord {
     pub time_secs: f64,
     pub learner_step: u64,
@@ -87,6 +88,18 @@ pub struct TrainRecord {
     pub weights_version: u64,
     /// Episodes finished so far.
     pub episodes: u64,
+    /// Over the recent episodes (`service.stats_window`): mean return, and the shares that
+    /// reached their goal and that collided; `None` before the first episode (and in files
+    /// written before these fields existed).
+    #[serde(default)]
+    pub episode_return_mean: Option<f64>,
+    #[serde(default)]
+    pub completion_rate: Option<f64>,
+    #[serde(default)]
+    pub collision_rate: Option<f64>,
+    /// Mean versions the connected actors' weights are behind; `None` without actors.
+    #[serde(default)]
+    pub weights_lag_mean: Option<f64>,
 }
 
 /// A metrics file that could not be read.

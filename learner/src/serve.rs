@@ -22,6 +22,7 @@ use tonic::codec::CompressionEncoding;
 use crate::checkpoint;
 use crate::dqn::Dqn;
 use crate::metrics_log::MetricsLog;
+use crate::progress::RateMeter;
 use crate::prometheus::serve_prometheus;
 use crate::replay::{Replay, ReplayConfig};
 use crate::service::LearnerService;
@@ -56,9 +57,14 @@ pub async fn resolve(addr: &str) -> Result<SocketAddr> {
 pub async fn serve(opts: ServeOptions) -> Result<()> {
     let running = start(opts).await?;
     eprintln!("learner listening on {} (run {} in {})", running.addr, running.shared.run_id, running.run_dir.display());
+    eprintln!("status, from another terminal: learner status --run-dir {}", running.run_dir.display());
+    let reporter = Arc::new(crate::progress::Reporter::stderr());
+    let progress = tokio::spawn(progress_loop(running.shared.clone(), reporter.clone(), Duration::from_secs(10)));
     tokio::select! {
         () = proto::shutdown::signal() => {}
         reason = running.failed() => {
+            progress.abort();
+            reporter.finish();
             let run_dir = running.run_dir.clone();
             // Let status queries see the reason for a moment, then go.
             tokio::time::sleep(Duration::from_secs(1)).await;
@@ -70,6 +76,8 @@ pub async fn serve(opts: ServeOptions) -> Result<()> {
             );
         }
     }
+    progress.abort();
+    reporter.finish();
     tracing::info!("stopping: finishing the current update and writing a checkpoint");
     let run_dir = running.run_dir.clone();
     let path = running.stop().await?;
@@ -232,7 +240,7 @@ async fn start_with(opts: ServeOptions, train: Trainer) -> Result<Running> {
         std::thread::Builder::new().name("train".into()).spawn(move || supervised_training(&shared, dqn, &run_dir, train))?
     };
 
-    // Metrics: rates, train.jsonl, progress in the log, Prometheus.
+    // Metrics: rates, train.jsonl, Prometheus.
     tokio::spawn(report_loop(shared.clone()));
     if let Some(m) = &opts.metrics_listen {
         let addr = resolve(m).await?;
@@ -247,14 +255,14 @@ async fn start_with(opts: ServeOptions, train: Trainer) -> Result<Running> {
     let listener =
         tokio::net::TcpListener::bind(addr).await.with_context(|| format!("binding gRPC address {addr} (service.listen / --listen)"))?;
     let bound = listener.local_addr()?;
-    std::fs::write(run_dir.join("server.addr"), bound.to_string())?;
+    std::fs::write(run_dir.join(crate::status::ADDR_FILE), bound.to_string())?;
     let max = cfg.service.max_message_bytes;
     let server = LearnerServer::new(LearnerService { shared: shared.clone() })
         .max_decoding_message_size(max)
         .max_encoding_message_size(max)
         .accept_compressed(CompressionEncoding::Zstd)
         .send_compressed(CompressionEncoding::Zstd);
-    let svc = tonic::service::interceptor::InterceptedService::new(server, auth_interceptor(token));
+    let svc = tonic::service::interceptor::InterceptedService::new(server, crate::auth::interceptor(token));
     let (health_reporter, health) = tonic_health::server::health_reporter();
     health_reporter.set_serving::<LearnerServer<LearnerService>>().await;
     {
@@ -283,13 +291,18 @@ async fn start_with(opts: ServeOptions, train: Trainer) -> Result<Running> {
         .http2_keepalive_timeout(Some(std::time::Duration::from_secs(20)))
         .add_service(health)
         .add_service(svc);
+    // Server reflection in both protocol revisions: `grpc.reflection.v1` (grpcurl, current
+    // clients) and `grpc.reflection.v1alpha`, which many stock clients still speak only (grpcio's
+    // Python `ProtoReflectionDescriptorDatabase`, older grpcurl builds, GUI clients).
     #[cfg(feature = "reflection")]
-    let router = router.add_service(
-        tonic_reflection::server::Builder::configure()
-            .register_encoded_file_descriptor_set(proto::v1::FILE_DESCRIPTOR_SET)
-            .register_encoded_file_descriptor_set(tonic_health::pb::FILE_DESCRIPTOR_SET)
-            .build_v1()?,
-    );
+    let router = {
+        let reflection = || {
+            tonic_reflection::server::Builder::configure()
+                .register_encoded_file_descriptor_set(proto::v1::FILE_DESCRIPTOR_SET)
+                .register_encoded_file_descriptor_set(tonic_health::pb::FILE_DESCRIPTOR_SET)
+        };
+        router.add_service(reflection().build_v1()?).add_service(reflection().build_v1alpha()?)
+    };
     let server = tokio::spawn(router.serve_with_incoming_shutdown(incoming, async move {
         let _ = stopped.await;
     }));
@@ -370,60 +383,50 @@ fn new_run_id() -> String {
     format!("run-{}-{:04x}", t.as_secs(), (t.subsec_nanos() >> 8) & 0xffff)
 }
 
-/// Refuses calls without the shared token (when one is configured).
-#[allow(clippy::result_large_err)]
-fn auth_interceptor(token: Option<String>) -> impl Fn(tonic::Request<()>) -> Result<tonic::Request<()>, tonic::Status> + Clone {
-    let expected = token.map(|t| format!("Bearer {t}"));
-    move |req: tonic::Request<()>| {
-        let Some(expected) = &expected else { return Ok(req) };
-        match req.metadata().get("authorization").and_then(|v| v.to_str().ok()) {
-            Some(v) if v == expected => Ok(req),
-            Some(_) => Err(tonic::Status::unauthenticated("wrong auth token")),
-            None => Err(tonic::Status::unauthenticated("this learner requires an auth token: send `authorization: Bearer TOKEN`")),
-        }
-    }
-}
-
-/// Every second: rates; every 10 s: a train.jsonl line and a progress log line.
+/// Every second: this session's rates (over the last 10 s of counters); every 10 s: a
+/// train.jsonl line.
 async fn report_loop(shared: Arc<Shared>) {
-    let mut last = (Instant::now(), 0u64, 0u64);
+    let counters = || {
+        let c = shared.counters.lock().expect("counters lock");
+        (c.learner_step, c.env_steps)
+    };
+    let session = Instant::now();
+    let (mut update_rate, mut step_rate) = (RateMeter::new(10.0), RateMeter::new(10.0));
+    let (updates, steps) = counters();
+    update_rate.push(0.0, updates);
+    step_rate.push(0.0, steps);
     let mut tick = 0u64;
     loop {
         tokio::time::sleep(Duration::from_secs(1)).await;
         if shared.stopping() {
             return;
         }
-        let (updates, steps) = {
-            let c = shared.counters.lock().expect("counters lock");
-            (c.learner_step, c.env_steps)
-        };
-        let dt = last.0.elapsed().as_secs_f64().max(1e-3);
+        let (updates, steps) = counters();
+        let t = session.elapsed().as_secs_f64();
+        update_rate.push(t, updates);
+        step_rate.push(t, steps);
         {
             let mut s = shared.stats.lock().expect("stats lock");
-            s.updates_per_sec = 0.7 * s.updates_per_sec + 0.3 * updates.saturating_sub(last.1) as f64 / dt;
-            s.env_steps_per_sec = 0.7 * s.env_steps_per_sec + 0.3 * steps.saturating_sub(last.2) as f64 / dt;
+            s.updates_per_sec = update_rate.rate();
+            s.env_steps_per_sec = step_rate.rate();
             s.epsilon = f64::from(shared.cfg.epsilon(0, steps));
         }
-        last = (Instant::now(), updates, steps);
         tick += 1;
-        if tick.is_multiple_of(10) {
-            if let Err(err) = shared.metrics.interval(&shared.train_record()) {
-                tracing::warn!(%err, "writing train.jsonl");
-            }
-            let st = crate::service::status(&shared);
-            let ep = st.episodes.unwrap_or_default();
-            tracing::info!(
-                env_steps = steps,
-                episodes = ep.episodes_total,
-                mean_return = format!("{:.2}", ep.mean_return),
-                updates = updates,
-                updates_per_sec = format!("{:.1}", st.updates_per_sec),
-                weights_version = st.weights_version,
-                replay = st.replay_size,
-                actors = st.actors.iter().filter(|a| a.connected).count(),
-                "progress"
-            );
+        if tick.is_multiple_of(10)
+            && let Err(err) = shared.metrics.interval(&shared.train_record())
+        {
+            tracing::warn!(%err, "writing train.jsonl");
         }
+    }
+}
+
+/// Shows the progress line (`crate::progress`) every `every` until aborted.
+pub async fn progress_loop(shared: Arc<Shared>, reporter: Arc<crate::progress::Reporter>, every: Duration) {
+    let session = Instant::now();
+    loop {
+        tokio::time::sleep(every).await;
+        let status = crate::service::status(&shared);
+        reporter.update(&crate::progress::line(session.elapsed().as_secs_f64(), &status));
     }
 }
 

@@ -193,6 +193,29 @@ impl Shared {
         let c = self.counters.lock().expect("counters lock").clone();
         let s = *self.stats.lock().expect("stats lock");
         let replay_size = self.replay.lock().expect("replay lock").len() as u64;
+        let (episode_return_mean, completion_rate, collision_rate) = {
+            let window = self.recent_episodes.lock().expect("episodes lock");
+            let n = window.len() as f64;
+            if window.is_empty() {
+                (None, None, None)
+            } else {
+                (
+                    Some(window.iter().map(|e| e.episode_return).sum::<f64>() / n),
+                    Some(window.iter().filter(|e| e.arrived).count() as f64 / n),
+                    Some(window.iter().filter(|e| e.collided).count() as f64 / n),
+                )
+            }
+        };
+        let weights_lag_mean = {
+            let timeout = self.cfg.service.actor_timeout_secs as f64;
+            let actors = self.actors.lock().expect("actors lock");
+            let lags: Vec<f64> = actors
+                .iter()
+                .filter(|a| a.last_seen.elapsed().as_secs_f64() < timeout)
+                .map(|a| c.weights_version.saturating_sub(a.weights_version) as f64)
+                .collect();
+            (!lags.is_empty()).then(|| lags.iter().sum::<f64>() / lags.len() as f64)
+        };
         TrainRecord {
             time_secs: self.run_secs(),
             learner_step: c.learner_step,
@@ -206,6 +229,10 @@ impl Shared {
             replay_size,
             weights_version: c.weights_version,
             episodes: c.episodes,
+            episode_return_mean,
+            completion_rate,
+            collision_rate,
+            weights_lag_mean,
         }
     }
 

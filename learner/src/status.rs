@@ -1,7 +1,28 @@
 //! `learner status`: asks a learner for its status and prints it, readable or as JSON.
 
+use std::path::Path;
+
 use proto::v1 as pb;
 use serde_json::json;
+
+/// The file in a run directory that holds the address its learner listens on (written by
+/// `learner serve` and `actor train` once bound; with port 0 it is the only way to find it).
+pub const ADDR_FILE: &str = "server.addr";
+
+/// The address a local run's learner listens on, read from `run_dir/server.addr`.
+pub fn addr_from_run_dir(run_dir: &Path) -> anyhow::Result<String> {
+    let path = run_dir.join(ADDR_FILE);
+    match std::fs::read_to_string(&path) {
+        Ok(text) if !text.trim().is_empty() => Ok(text.trim().to_owned()),
+        Ok(_) => anyhow::bail!("{} is empty: expected the learner's address, host:port", path.display()),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => anyhow::bail!(
+            "{} does not exist: --run-dir must be the directory of a learner started on this machine \
+             (`actor train --run-dir DIR` or `learner serve --run-dir DIR`); for another machine's learner give --addr HOST:PORT",
+            path.display()
+        ),
+        Err(e) => Err(anyhow::Error::new(e).context(format!("reading {}", path.display()))),
+    }
+}
 
 /// The status as a JSON value (the `--json` output).
 #[must_use]
@@ -114,5 +135,21 @@ pub fn print_table(s: &pb::StatusResponse) {
             "{:<34} {:<12} {:>5} {:>9} {:>9.1}s {:>7} {:>12} {:>8}",
             a.actor_id, a.name, a.actor_index, a.connected, a.last_seen_secs, a.version_lag, a.transitions, a.rejected_batches
         );
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_address_comes_from_server_addr_and_a_missing_file_is_explained() {
+        let dir = tempfile::tempdir().unwrap();
+        let e = addr_from_run_dir(dir.path()).unwrap_err().to_string();
+        assert!(e.contains("server.addr does not exist") && e.contains("--addr"), "{e}");
+        std::fs::write(dir.path().join(ADDR_FILE), "").unwrap();
+        assert!(addr_from_run_dir(dir.path()).unwrap_err().to_string().contains("is empty"));
+        std::fs::write(dir.path().join(ADDR_FILE), "127.0.0.1:41234\n").unwrap();
+        assert_eq!(addr_from_run_dir(dir.path()).unwrap(), "127.0.0.1:41234");
     }
 }

@@ -52,6 +52,7 @@ fn train(step: u64, loss: Option<f64>, mean_q: Option<f64>) -> TrainRecord {
         replay_size: step * 4,
         weights_version: step / 100,
         episodes: step / 10,
+        ..TrainRecord::default()
     }
 }
 

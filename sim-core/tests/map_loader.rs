@@ -116,6 +116,39 @@ fn negative_lane_width() {
 }
 
 #[test]
+fn a_bad_lane_width_is_blamed_on_the_line_that_set_it() {
+    // 35 m lanes on `a_north` (set on its own line, 5) make the junction at A take 37 m of `ab`:
+    // the error names line 5 and its field, not ab's line 2.
+    let wide_road = short_road_map(30.0).replace("to=N1 lanes=1,1", "to=N1 lanes=1,1 lane_width=35");
+    let e = error_of(&wide_road);
+    assert_at(&e, 5, Some("lane_width"));
+    assert!(e.message.contains("lane width 35 m (road `a_north`)") && e.message.contains("road `ab` (line 2)"), "{e}");
+    // Set by a `defaults` line (line 1 here), the blame goes there.
+    let e = error_of(&format!("defaults lane_width=35\n{}", short_road_map(30.0)));
+    assert_at(&e, 1, Some("lane_width"));
+    // A plausible width on a road that is simply too short keeps the road's own line.
+    assert_at(&error_of(&short_road_map(10.0)), 2, None);
+}
+
+#[test]
+fn implausible_lane_widths_and_speed_limits_load_with_a_warning_at_their_line() {
+    assert!(Map::from_text(BASE).unwrap().warnings.is_empty());
+    let map = Map::from_text(&BASE.replace("lanes=1,1", "lanes=1,1 lane_width=35 speed=8.3")).expect("loads");
+    let got: Vec<(usize, &str)> = map.warnings.iter().map(|w| (w.line, w.field.as_str())).collect();
+    assert_eq!(got, [(4, "lane_width"), (4, "speed")], "{:?}", map.warnings);
+    assert!(map.warnings[0].to_string().starts_with("map line 4, field `lane_width`: lane width 35 m"), "{}", map.warnings[0]);
+    assert!(map.warnings[1].message.contains("8.3 km/h") && map.warnings[1].message.contains("10–130 km/h"), "{}", map.warnings[1]);
+    // One warning per line that set the value, however many roads inherit it.
+    let two_roads = format!("defaults lane_width=2 speed=140\n{}", short_road_map(30.0));
+    let got: Vec<(usize, String)> = Map::from_text(&two_roads).unwrap().warnings.into_iter().map(|w| (w.line, w.field)).collect();
+    assert_eq!(got, [(1, "lane_width".to_owned()), (1, "speed".to_owned())]);
+    // The edges of the plausible ranges are plausible.
+    let edges = BASE.replace("lanes=1,1", "lanes=1,1 lane_width=2.5 speed=130");
+    assert!(Map::from_text(&edges).unwrap().warnings.is_empty());
+    assert!(Map::default_town().warnings.is_empty(), "the default town is plausible");
+}
+
+#[test]
 fn forgotten_end_names_the_road() {
     // Without `end`, the next top-level statement shows the road was never closed.
     let e = error_of(&format!("{}building x=50 y=50 width=5 depth=5\n", BASE.replace("end\n", "")));

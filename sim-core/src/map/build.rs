@@ -84,6 +84,8 @@ pub(super) fn build(spec: &MapSpec) -> Result<Map, MapError> {
     let half_width = |r: &RoadSpec| (r.lanes_forward.max(r.lanes_backward) as f32) * r.lane_width + r.shoulder;
     let mut is_junction = vec![false; nodes.len()];
     let mut cut = vec![0.0f32; nodes.len()];
+    // The road whose width sets each junction's size, to blame when the junction does not fit.
+    let mut widest: Vec<Option<usize>> = vec![None; nodes.len()];
     for (n, list) in at_node.iter().enumerate() {
         is_junction[n] = match list.as_slice() {
             [] | [_] => false,
@@ -91,7 +93,9 @@ pub(super) fn build(spec: &MapSpec) -> Result<Map, MapError> {
             _ => true,
         };
         if is_junction[n] {
-            cut[n] = list.iter().map(|e| half_width(&spec.roads[e.road])).fold(0.0, f32::max) + JUNCTION_MARGIN;
+            let w = list.iter().max_by(|a, b| half_width(&spec.roads[a.road]).total_cmp(&half_width(&spec.roads[b.road])));
+            widest[n] = w.map(|e| e.road);
+            cut[n] = w.map_or(0.0, |e| half_width(&spec.roads[e.road])) + JUNCTION_MARGIN;
         }
     }
 
@@ -103,6 +107,29 @@ pub(super) fn build(spec: &MapSpec) -> Result<Map, MapError> {
         let (from, to) = ends[i];
         let (cut_start, cut_end) = (cut[from], cut[to]);
         if centre.length() - cut_start - cut_end < 2.0 {
+            // A lane width beyond what roads have is the likelier mistake: blame the line that
+            // set it (perhaps a `defaults` line, or another road's) rather than this road's.
+            let implausible = [from, to]
+                .into_iter()
+                .filter_map(|n| widest[n])
+                .map(|w| &spec.roads[w])
+                .find(|w| !super::format::PLAUSIBLE_LANE_WIDTH.contains(&w.lane_width) && w.lane_width_line > 0);
+            if let Some(w) = implausible {
+                return Err(MapError::at(
+                    w.lane_width_line,
+                    Some("lane_width"),
+                    format!(
+                        "lane width {} m (road `{}`) makes its junctions take {:.1} m of road `{}` (line {}), which is {:.1} m long; \
+                         lanes are 2.5–5 m wide",
+                        w.lane_width,
+                        w.name,
+                        cut_start + cut_end,
+                        r.name,
+                        r.line,
+                        centre.length()
+                    ),
+                ));
+            }
             return Err(MapError::at(
                 r.line,
                 None,
@@ -276,7 +303,7 @@ pub(super) fn build(spec: &MapSpec) -> Result<Map, MapError> {
     }
 
     let surface = paint_surface(&roads, &junctions, &at_node, &is_junction, &obstacles, &overpasses);
-    Ok(Map { name: spec.name.clone(), roads, lanes, junctions, obstacles, overpasses, surface })
+    Ok(Map { name: spec.name.clone(), roads, lanes, junctions, obstacles, overpasses, surface, warnings: spec.warnings.clone() })
 }
 
 /// The surface raster may hold at most this many cells (64 MiB: 4 km² at `RASTER_CELL`).

@@ -31,6 +31,31 @@ pub struct MapSpec {
     pub poles: Vec<PoleSpec>,
     /// Overpass decks; their pillars are obstacles, the deck is above the traffic.
     pub overpasses: Vec<OverpassSpec>,
+    /// Values that load but are unlikely to be meant (see [`PLAUSIBLE_LANE_WIDTH`],
+    /// [`PLAUSIBLE_SPEED_KMH`]), one per line and field that set them.
+    pub warnings: Vec<MapWarning>,
+}
+
+/// Lane widths, metres, that real roads have (with room on both sides: lanes are 2.7–3.7 m wide
+/// on most roads). Wider or narrower ones load, with a warning.
+pub const PLAUSIBLE_LANE_WIDTH: std::ops::RangeInclusive<f32> = 2.5..=5.0;
+/// Speed limits, km/h, that real roads have. Others load, with a warning (a limit given in m/s by
+/// mistake, 13.9 for 50 km/h, is the usual cause).
+pub const PLAUSIBLE_SPEED_KMH: std::ops::RangeInclusive<f32> = 10.0..=130.0;
+
+/// A value that loads but is unlikely to be what the map's author meant: the line and field that
+/// set it, and why.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MapWarning {
+    pub line: usize,
+    pub field: String,
+    pub message: String,
+}
+
+impl fmt::Display for MapWarning {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "map line {}, field `{}`: {}", self.line, self.field, self.message)
+    }
 }
 
 /// `node NAME x=.. y=..`
@@ -56,12 +81,17 @@ pub struct RoadSpec {
     pub lanes_backward: u32,
     /// Metres, default 3.5.
     pub lane_width: f32,
+    /// The line that set `lane_width`: this road's, a `defaults` line's, or 0 for the built-in
+    /// default.
+    pub lane_width_line: usize,
     /// Drivable (parking) strip beyond the outermost lane on each side, metres, default 0.
     pub shoulder: f32,
     /// Sidewalk beyond the shoulder on each side, metres (not drivable), default 3.
     pub sidewalk: f32,
     /// Speed limit for traffic, km/h, default 50.
     pub speed_kmh: f32,
+    /// The line that set `speed_kmh` (as for `lane_width_line`).
+    pub speed_line: usize,
     pub pieces: Vec<PieceSpec>,
     pub line: usize,
 }
@@ -210,9 +240,11 @@ pub fn parse(text: &str) -> Result<MapSpec, MapError> {
                 let f = Fields::parse(line, &rest, &["lane_width", "shoulder", "sidewalk", "speed"])?;
                 defaults = RoadDefaults {
                     lane_width: f.positive_or("lane_width", defaults.lane_width)?,
+                    lane_width_line: f.line_of("lane_width", defaults.lane_width_line),
                     shoulder: f.non_negative_or("shoulder", defaults.shoulder)?,
                     sidewalk: f.non_negative_or("sidewalk", defaults.sidewalk)?,
                     speed_kmh: f.positive_or("speed", defaults.speed_kmh)?,
+                    speed_line: f.line_of("speed", defaults.speed_line),
                 };
             }
             "node" => {
@@ -238,9 +270,11 @@ pub fn parse(text: &str) -> Result<MapSpec, MapError> {
                     lanes_forward,
                     lanes_backward,
                     lane_width: f.positive_or("lane_width", defaults.lane_width)?,
+                    lane_width_line: f.line_of("lane_width", defaults.lane_width_line),
                     shoulder: f.non_negative_or("shoulder", defaults.shoulder)?,
                     sidewalk: f.non_negative_or("sidewalk", defaults.sidewalk)?,
                     speed_kmh: f.positive_or("speed", defaults.speed_kmh)?,
+                    speed_line: f.line_of("speed", defaults.speed_line),
                     pieces: Vec::new(),
                     line,
                 });
@@ -307,20 +341,60 @@ pub fn parse(text: &str) -> Result<MapSpec, MapError> {
     if spec.roads.is_empty() {
         return Err(MapError::at(0, None, "the map has no roads"));
     }
+    spec.warnings = plausibility_warnings(&spec.roads);
     Ok(spec)
+}
+
+/// Warnings for roads' lane widths and speed limits outside what real roads have, each reported
+/// once at the line that set it (a `defaults` line shared by many roads is one warning).
+fn plausibility_warnings(roads: &[RoadSpec]) -> Vec<MapWarning> {
+    let mut out: Vec<MapWarning> = Vec::new();
+    let mut warn = |line: usize, field: &str, message: String| {
+        if !out.iter().any(|w| w.line == line && w.field == field) {
+            out.push(MapWarning { line, field: field.to_owned(), message });
+        }
+    };
+    for r in roads {
+        let (lo, hi) = (PLAUSIBLE_LANE_WIDTH.start(), PLAUSIBLE_LANE_WIDTH.end());
+        if !PLAUSIBLE_LANE_WIDTH.contains(&r.lane_width) {
+            warn(
+                r.lane_width_line,
+                "lane_width",
+                format!(
+                    "lane width {} m (road `{}`) is outside the plausible {lo}–{hi} m; it is in metres, and real lanes are 2.7–3.7 m",
+                    r.lane_width, r.name
+                ),
+            );
+        }
+        let (lo, hi) = (PLAUSIBLE_SPEED_KMH.start(), PLAUSIBLE_SPEED_KMH.end());
+        if !PLAUSIBLE_SPEED_KMH.contains(&r.speed_kmh) {
+            warn(
+                r.speed_line,
+                "speed",
+                format!(
+                    "speed limit {} km/h (road `{}`) is outside the plausible {lo}–{hi} km/h; it is in km/h, not m/s",
+                    r.speed_kmh, r.name
+                ),
+            );
+        }
+    }
+    out.sort_by_key(|w| w.line);
+    out
 }
 
 #[derive(Debug, Clone, Copy)]
 struct RoadDefaults {
     lane_width: f32,
+    lane_width_line: usize,
     shoulder: f32,
     sidewalk: f32,
     speed_kmh: f32,
+    speed_line: usize,
 }
 
 impl Default for RoadDefaults {
     fn default() -> Self {
-        Self { lane_width: 3.5, shoulder: 0.0, sidewalk: 3.0, speed_kmh: 50.0 }
+        Self { lane_width: 3.5, lane_width_line: 0, shoulder: 0.0, sidewalk: 3.0, speed_kmh: 50.0, speed_line: 0 }
     }
 }
 
@@ -391,6 +465,11 @@ impl<'a> Fields<'a> {
 
     fn positive_or(&self, field: &str, default: f32) -> Result<f32, MapError> {
         if self.values.contains_key(field) { self.positive(field) } else { Ok(default) }
+    }
+
+    /// This statement's line if it sets `field`, else `inherited` (the line the default came from).
+    fn line_of(&self, field: &str, inherited: usize) -> usize {
+        if self.values.contains_key(field) { self.line } else { inherited }
     }
 
     fn non_negative_or(&self, field: &str, default: f32) -> Result<f32, MapError> {

@@ -11,7 +11,7 @@ mod surface;
 
 use crate::math::Vec2;
 use crate::polyline::Polyline;
-pub use format::{MapError, MapSpec};
+pub use format::{MapError, MapSpec, MapWarning};
 pub use surface::{SHADE, Surface, SurfaceRaster};
 
 /// Index of a lane in [`Map::lanes`].
@@ -39,6 +39,8 @@ pub struct Map {
     pub obstacles: Vec<StaticObstacle>,
     pub overpasses: Vec<Overpass>,
     pub surface: SurfaceRaster,
+    /// Values that loaded but look like mistakes (`format::MapWarning`); the caller shows them.
+    pub warnings: Vec<MapWarning>,
 }
 
 /// A road between two nodes: its centre line and lanes.
