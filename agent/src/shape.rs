@@ -51,6 +51,39 @@ impl NetShape {
         ]
     }
 
+    /// The convolution layers' `(height, width, input channels)`, first to last (each output has
+    /// `filters` channels at the same size; pooling halves the size for the next layer).
+    #[must_use]
+    pub fn conv_layers(&self) -> [(usize, usize, usize); 3] {
+        let (h, w) = (self.height, self.width);
+        [(h, w, self.channels), (h / 2, w / 2, self.filters), (h / 4, w / 4, self.filters)]
+    }
+
+    /// Floating-point operations (a multiply-add counts 2) of one image's forward pass: the
+    /// convolutions' and the dense layers' products, counted over the useful outputs only
+    /// (biases, activations and pooling are left out). The figure the benchmarks divide by.
+    #[must_use]
+    pub fn forward_flops(&self) -> f64 {
+        let conv: usize = self.conv_layers().iter().map(|&(h, w, c)| 2 * h * w * 9 * c * self.filters).sum();
+        let dense = 2 * (self.flat() * self.hidden + self.hidden * self.hidden + self.hidden * self.actions);
+        (conv + dense) as f64
+    }
+
+    /// Floating-point operations of one image's backward pass to every parameter's gradient:
+    /// each convolution's kernel gradient, the input gradients of the second and third
+    /// convolutions (the first needs none), and two products per dense layer.
+    #[must_use]
+    pub fn backward_flops(&self) -> f64 {
+        let conv: usize = self
+            .conv_layers()
+            .iter()
+            .enumerate()
+            .map(|(l, &(h, w, c))| 2 * h * w * 9 * c * self.filters * if l == 0 { 1 } else { 2 })
+            .sum();
+        let dense = 4 * (self.flat() * self.hidden + self.hidden * self.hidden + self.hidden * self.actions);
+        (conv + dense) as f64
+    }
+
     /// The fan-in of the layer parameter `name` belongs to (weights: the product of all but the
     /// first dimension; biases: their layer's).
     #[must_use]
@@ -61,5 +94,21 @@ impl NetShape {
             "fc1" => self.flat(),
             _ => self.hidden,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_paper_network_at_84x84_gray_costs_about_174_mflop_per_forward() {
+        let s = NetShape { height: 84, width: 84, channels: 1, scalars: 2, actions: 6, filters: 64, hidden: 256 };
+        // conv1 8.13, conv2 130.1, conv3 32.5, fc1 3.28, fc2 0.13 MFLOP.
+        let conv = 2.0 * 64.0 * 9.0 * (84.0 * 84.0 + 42.0 * 42.0 * 64.0 + 21.0 * 21.0 * 64.0);
+        let dense = 2.0 * (6402.0 * 256.0 + 256.0 * 256.0 + 256.0 * 6.0);
+        assert_eq!(s.forward_flops(), conv + dense);
+        assert!((s.forward_flops() / 1e6 - 174.1).abs() < 0.05, "{}", s.forward_flops());
+        assert_eq!(s.backward_flops(), conv * 2.0 - 2.0 * 64.0 * 9.0 * 84.0 * 84.0 + 2.0 * dense);
     }
 }

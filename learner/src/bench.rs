@@ -31,6 +31,46 @@ fn load_average() -> Option<f64> {
     std::fs::read_to_string("/proc/loadavg").ok()?.split_whitespace().next()?.parse().ok()
 }
 
+/// The CPU's model name (`/proc/cpuinfo`), to print beside timings.
+fn cpu_model() -> Option<String> {
+    let text = std::fs::read_to_string("/proc/cpuinfo").ok()?;
+    let line = text.lines().find(|l| l.starts_with("model name"))?;
+    Some(line.split_once(':')?.1.trim().to_owned())
+}
+
+/// Side of the square matrices the calibration multiplies.
+const CALIBRATION_N: usize = 1024;
+
+/// The machine's practical limit: GFLOP/s of a square `CALIBRATION_N` f32 matrix product on
+/// `threads` threads through the same `gemm` crate the network uses (the median of `reps`
+/// products after a warm-up). The figures below are read as fractions of it.
+#[must_use]
+pub fn gemm_peak_gflops(threads: usize, reps: usize) -> f64 {
+    use agent::fastnet::gemm::{View, matmul};
+    let n = CALIBRATION_N;
+    let a: Vec<f32> = (0..n * n).map(|i| ((i * 7 + 3) % 1000) as f32 / 500.0 - 1.0).collect();
+    let b: Vec<f32> = (0..n * n).map(|i| ((i * 13 + 5) % 1000) as f32 / 500.0 - 1.0).collect();
+    let mut c = vec![0f32; n * n];
+    let v = View::rows(0, n, n, n);
+    let ms = median_ms(reps, || matmul(&mut c, v, false, &a, v, &b, v, threads));
+    2.0 * (n * n * n) as f64 / (ms * 1e6)
+}
+
+/// Floating-point operations of one DQN update of `batch` transitions: the target network's
+/// forward pass on the next states (and the online network's too for double DQN), the online
+/// forward pass and its backward pass. The optimizer's few element-wise passes are left out.
+#[must_use]
+pub fn update_flops(shape: &NetShape, batch: usize, double_dqn: bool) -> f64 {
+    let forwards = if double_dqn { 3.0 } else { 2.0 };
+    batch as f64 * (forwards * shape.forward_flops() + shape.backward_flops())
+}
+
+/// GFLOP/s of `flops` done in `ms`, and that as a fraction of `peak` GFLOP/s.
+fn rate(flops: f64, ms: f64, peak: f64) -> (f64, f64) {
+    let gflops = flops / (ms * 1e6);
+    (gflops, gflops / peak)
+}
+
 /// A batch of random transitions for the paper's network at `shape`.
 fn random_batch(shape: &NetShape, batch: usize) -> Batch {
     let mut rng = ChaCha8Rng::seed_from_u64(1);
@@ -67,42 +107,72 @@ fn median_ms(reps: usize, mut f: impl FnMut()) -> f64 {
 
 /// Times full DQN updates (online forward and backward, target forward on the next states,
 /// optimizer step) of the paper's network at `input` with batch `batch` on `threads` threads,
-/// and forward passes at batch 1 and at `batch`. With `reference`, also times candle's own
-/// implementation of the same update's forward and backward passes, in the same run.
-pub fn train(input: (usize, usize, usize), batch: usize, updates: usize, threads: usize, reference: bool) -> Result<serde_json::Value> {
+/// and forward passes at batch 1 and at `forward_batch`; calibrates the machine (a square GEMM
+/// on 1 and on `threads` threads) and gives each figure as a fraction of that peak. With
+/// `reference`, also times candle's own implementation of the same update's forward and backward
+/// passes, in the same run.
+pub fn train(
+    input: (usize, usize, usize),
+    batch: usize,
+    forward_batch: usize,
+    updates: usize,
+    threads: usize,
+    reference: bool,
+) -> Result<serde_json::Value> {
     let (w, h, c) = input;
     let agent = AgentConfig::default();
     let shape = NetShape { height: h, width: w, channels: c, scalars: 2, actions: 6, filters: agent.conv_filters, hidden: agent.hidden };
     let load_before = load_average();
+    let peak_1 = gemm_peak_gflops(1, 5);
+    let peak = if threads == 1 { peak_1 } else { gemm_peak_gflops(threads, 5) };
+    tracing::info!(peak_gflops_1_thread = peak_1, peak_gflops = peak, threads, "GEMM calibration");
     let mut dqn = Dqn::with_threads(shape, &agent, threads);
-    let b = random_batch(&shape, batch);
+    let update_batch = random_batch(&shape, batch);
+    let b = random_batch(&shape, forward_batch);
     let ms = median_ms(updates, || {
-        dqn.update(&b);
+        dqn.update(&update_batch);
     });
     tracing::info!(ms_per_update = ms, "fast update timed");
     let mut net = FastNet::new(shape, threads);
-    let one = random_batch(&shape, 1);
     let frame = h * w * c;
+    let s = shape.scalars;
     let forward_1 = median_ms(updates.max(20), || {
-        net.forward(&dqn.online, &one.images[..frame], &one.scalars);
+        net.forward(&dqn.online, &b.images[..frame], &b.scalars[..s]);
     });
-    let forward_b = median_ms(updates, || {
+    let forward_b = median_ms(updates.max(10), || {
         net.forward(&dqn.online, &b.images, &b.scalars);
     });
+    let per_sample = forward_b / forward_batch as f64;
+    let f = shape.forward_flops();
+    let (gf_1, frac_1) = rate(f, forward_1, peak);
+    let (gf_b, frac_b) = rate(f, per_sample, peak);
+    let (gf_u, frac_u) = rate(update_flops(&shape, batch, agent.double_dqn), ms, peak);
     let mut out = serde_json::json!({
         "updates_per_sec": 1000.0 / ms,
         "batch": batch,
         "input": format!("{w}x{h}x{c}"),
         "ms_per_update": ms,
+        "update_gflops": gf_u,
+        "update_fraction_of_peak": frac_u,
         "threads": threads,
         "forward_batch1_ms": forward_1,
-        "forward_ms_per_sample": forward_b / batch as f64,
+        "forward_batch1_gflops": gf_1,
+        "forward_batch1_fraction_of_peak": frac_1,
+        "forward_batch": forward_batch,
+        "forward_ms_per_sample": per_sample,
+        "forward_gflops": gf_b,
+        "forward_fraction_of_peak": frac_b,
+        "forward_mflop_per_image": f / 1e6,
+        "peak_gflops_1_thread": peak_1,
+        "peak_gflops": peak,
+        "calibration": format!("{CALIBRATION_N}x{CALIBRATION_N}x{CALIBRATION_N} f32 GEMM, median of 5"),
+        "cpu": cpu_model(),
         "implementation": "fastnet",
         "load_before": load_before,
         "load_after": load_average(),
     });
     if reference {
-        let candle_ms = candle_ms_per_update(&shape, &dqn.online, &b, updates.min(3))?;
+        let candle_ms = candle_ms_per_update(&shape, &dqn.online, &update_batch, updates.min(3))?;
         tracing::info!(candle_ms_per_update = candle_ms, "candle reference timed");
         out["candle_ms_per_update"] = serde_json::json!(candle_ms);
         out["speedup_over_candle"] = serde_json::json!(candle_ms / ms);
@@ -263,6 +333,8 @@ pub async fn e2e(actors: usize, envs: usize, seconds: f64, train: bool, durabili
         bail!("the actor program is not next to this one ({}): build it with `cargo build --release -p actor`", actor_exe.display());
     }
     let load_before = load_average();
+    let threads = agent::fastnet::default_threads();
+    let peak = gemm_peak_gflops(threads, 5);
     let mut cfg = RunConfig::default();
     cfg.service.durability = durability;
     if !train {
@@ -322,9 +394,19 @@ pub async fn e2e(actors: usize, envs: usize, seconds: f64, train: bool, durabili
     running.stop().await?;
     let _ = std::fs::remove_dir_all(&dir);
     let mean_lag = if lags.is_empty() { 0.0 } else { lags.iter().sum::<f64>() / lags.len() as f64 };
+    let (steps_per_sec, updates_per_sec) = ((s1 - s0) as f64 / secs, (u1 - u0) as f64 / secs);
+    // The arithmetic the run did: one forward pass per environment step, and the updates'.
+    let shape = cfg.net_shape();
+    let gflops =
+        (steps_per_sec * shape.forward_flops() + updates_per_sec * update_flops(&shape, cfg.agent.batch_size, cfg.agent.double_dqn)) / 1e9;
     Ok(serde_json::json!({
-        "env_steps_per_sec": (s1 - s0) as f64 / secs,
-        "updates_per_sec": (u1 - u0) as f64 / secs,
+        "env_steps_per_sec": steps_per_sec,
+        "updates_per_sec": updates_per_sec,
+        "gflops": gflops,
+        "peak_gflops": peak,
+        "fraction_of_peak": gflops / peak,
+        "threads": threads,
+        "cpu": cpu_model(),
         "mean_weight_lag": mean_lag,
         "learner_idle_fraction": ((idle1 - idle0) / secs).clamp(0.0, 1.0),
         "replay_ratio": cfg.agent.replay_ratio,

@@ -107,9 +107,12 @@ enum Command {
 
 #[derive(Debug, Subcommand)]
 enum BenchCommand {
-    /// Full DQN updates of the paper network: {"updates_per_sec","batch","input","ms_per_update",
-    /// "forward_batch1_ms","forward_ms_per_sample","threads","load_before","load_after"}, and with
-    /// --reference {"candle_ms_per_update","speedup_over_candle"}. Times are medians.
+    /// Full DQN updates of the paper network and forward passes at batch 1 and --forward-batch,
+    /// beside the machine's GEMM calibration: {"updates_per_sec","batch","input","ms_per_update",
+    /// "forward_batch1_ms","forward_batch","forward_ms_per_sample","peak_gflops_1_thread",
+    /// "peak_gflops" (on --threads), each figure's "…_gflops" and "…_fraction_of_peak","threads",
+    /// "cpu","load_before","load_after"}, and with --reference
+    /// {"candle_ms_per_update","speedup_over_candle"}. Times are medians.
     Train {
         /// Input image WIDTHxHEIGHTxCHANNELS.
         #[arg(long, default_value = "84x84x3", value_parser = learner::bench::parse_input)]
@@ -117,6 +120,9 @@ enum BenchCommand {
         /// Transitions per update.
         #[arg(long, default_value_t = 32)]
         batch: usize,
+        /// Images per forward pass for `forward_ms_per_sample` (an actor's batch).
+        #[arg(long, default_value_t = 8)]
+        forward_batch: usize,
         /// Updates to time (after one warm-up update).
         #[arg(long, default_value_t = 10)]
         updates: usize,
@@ -130,9 +136,10 @@ enum BenchCommand {
         #[arg(long)]
         json: bool,
     },
-    /// Learner here plus N actor processes: {"env_steps_per_sec","updates_per_sec","mean_weight_lag",
-    /// "learner_idle_fraction","replay_ratio","training","actors","envs_per_actor","load_before",
-    /// "load_after"}.
+    /// Learner here plus N actor processes: {"env_steps_per_sec","updates_per_sec","gflops" (the
+    /// forward passes' and updates' arithmetic per second),"peak_gflops" (GEMM calibration on every
+    /// core),"fraction_of_peak","mean_weight_lag","learner_idle_fraction","replay_ratio","training",
+    /// "actors","envs_per_actor","cpu","load_before","load_after"}.
     E2e {
         /// Actor processes (the `actor` program next to this one).
         #[arg(long, default_value_t = 2)]
@@ -262,12 +269,14 @@ fn main() -> Result<()> {
                 println!("wrote {}", out.display());
                 Ok(())
             }
-            Command::Bench(BenchCommand::Train { input, batch, updates, threads, reference, json }) => {
-                if batch == 0 || updates == 0 || threads == Some(0) {
-                    anyhow::bail!("--batch, --updates and --threads must be at least 1");
+            Command::Bench(BenchCommand::Train { input, batch, forward_batch, updates, threads, reference, json }) => {
+                if batch == 0 || forward_batch == 0 || updates == 0 || threads == Some(0) {
+                    anyhow::bail!("--batch, --forward-batch, --updates and --threads must be at least 1");
                 }
                 let threads = threads.unwrap_or_else(agent::fastnet::default_threads);
-                let v = tokio::task::spawn_blocking(move || learner::bench::train(input, batch, updates, threads, reference)).await??;
+                let v =
+                    tokio::task::spawn_blocking(move || learner::bench::train(input, batch, forward_batch, updates, threads, reference))
+                        .await??;
                 print_result(&v, json);
                 Ok(())
             }

@@ -1,0 +1,25 @@
+//! Runs the paper network's forward pass in a loop, for profilers (`valgrind --tool=callgrind`,
+//! `perf record`): `cargo run --release -p agent --example forward -- 84x84x1 BATCH THREADS CALLS`.
+//! Prints the Q values' checksum so that the work cannot be optimised away.
+
+use agent::NetShape;
+use agent::fastnet::{FastNet, Params};
+
+fn main() {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let arg = |i: usize, default: &str| args.get(i).cloned().unwrap_or_else(|| default.to_owned());
+    let dims: Vec<usize> = arg(0, "84x84x1").split('x').map(|v| v.parse().expect("WxHxC")).collect();
+    let (batch, threads, calls): (usize, usize, usize) =
+        (arg(1, "1").parse().expect("batch"), arg(2, "1").parse().expect("threads"), arg(3, "20").parse().expect("calls"));
+    let shape = NetShape { width: dims[0], height: dims[1], channels: dims[2], scalars: 2, actions: 6, filters: 64, hidden: 256 };
+    let params = Params::init(shape, 1);
+    let frame = shape.height * shape.width * shape.channels;
+    let images: Vec<u8> = (0..batch * frame).map(|i| (i.wrapping_mul(2_654_435_761) >> 7) as u8).collect();
+    let scalars = vec![0.5f32; batch * shape.scalars];
+    let mut net = FastNet::new(shape, threads);
+    let mut sum = 0f64;
+    for _ in 0..calls {
+        sum += net.forward(&params, &images, &scalars).iter().map(|&q| f64::from(q)).sum::<f64>();
+    }
+    println!("{sum}");
+}
