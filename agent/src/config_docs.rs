@@ -109,13 +109,27 @@ pub const FIELD_DOCS: &[(&str, &str)] = &[
     ("agent.seed", "Seed of network initialisation and replay sampling (default 0)."),
     ("service.listen", "gRPC listen address (default 127.0.0.1:50051)."),
     ("service.run_dir", "Run directory: effective config, checkpoints, metrics (default `runs/default`)."),
-    ("service.checkpoint_interval_secs", "Seconds between checkpoints (default 300)."),
+    (
+        "service.checkpoint_interval_secs",
+        "Seconds between checkpoints (default 300; a fresh run writes one before it serves, the first after training starts comes within 30 s, and a failed write is retried with backoff).",
+    ),
     (
         "service.max_message_bytes",
         "Largest gRPC message accepted or sent, bytes (default 64 MiB: a weights message is ~7 MB for the paper network, a batch of 256 84×84 RGB transitions ~5.4 MB).",
     ),
-    ("service.actor_timeout_secs", "Seconds of silence after which an actor counts as disconnected (default 30)."),
+    (
+        "service.actor_timeout_secs",
+        "An actor counts as connected while an experience stream of it is open and it was heard from within this many seconds (default 10).",
+    ),
     ("service.stats_window", "Episodes in the rolling statistics of the status (default 100)."),
+    (
+        "service.durability",
+        "`ack` (default): a batch is acknowledged only once it is in the replay log on disk (RUN_DIR/replay-log/, group-committed) and --resume rebuilds the replay from it; `none`: acknowledged once in memory, the replay starts empty after a restart.",
+    ),
+    (
+        "service.replay_log_segment_bytes",
+        "Bytes per replay log segment (default 64 MiB); segments whose transitions have all left the replay are deleted.",
+    ),
     (
         "preset",
         "A named preset the file starts from (`paper`, `end-to-end`, `hybrid-tuned`, `end-to-end-tuned`); the file's other values override it, table by table.",
