@@ -223,15 +223,22 @@ fn candle_step(shape: &NetShape, params: &Params, b: &Batch) -> candle_core::Res
 
 /// [`ingest_one`] for each of `modes`, in the same run: `transitions_per_sec` is the last mode's,
 /// and `by_durability` has each (`none` is the learner before the replay log; `ack` acknowledges a
-/// batch once it is synced to disk).
+/// batch once it is synced to disk), with, for `ack`, the replay log's size and the time a
+/// `--resume` took to rebuild the replay from it (`resume_secs`).
 pub async fn ingest(seconds: f64, modes: &[Durability]) -> Result<serde_json::Value> {
     let load_before = load_average();
     let mut by = serde_json::Map::new();
     let mut last = 0.0;
     for &mode in modes {
-        last = ingest_one(seconds, mode).await?;
+        let m = ingest_one(seconds, mode).await?;
+        last = m.transitions_per_sec;
         tracing::info!(durability = mode.name(), transitions_per_sec = last, "ingestion measured");
         by.insert(mode.name().into(), serde_json::json!(last));
+        if let Some(r) = m.resume {
+            by.insert("ack_replay_log_bytes".into(), serde_json::json!(r.log_bytes));
+            by.insert("ack_resume_secs".into(), serde_json::json!(r.secs));
+            by.insert("ack_resume_replay_size".into(), serde_json::json!(r.replay_size));
+        }
     }
     Ok(serde_json::json!({
         "transitions_per_sec": last,
@@ -241,11 +248,26 @@ pub async fn ingest(seconds: f64, modes: &[Durability]) -> Result<serde_json::Va
     }))
 }
 
+/// What [`ingest_one`] measured.
+#[derive(Debug, Clone, Copy)]
+pub struct Ingested {
+    pub transitions_per_sec: f64,
+    /// With a replay log: rebuilding the replay from it.
+    pub resume: Option<Resumed>,
+}
+
+#[derive(Debug, Clone, Copy)]
+pub struct Resumed {
+    pub log_bytes: u64,
+    pub secs: f64,
+    pub replay_size: u64,
+}
+
 /// Streams batches of 64 transitions of 84×84 gray frames to an in-process learner on loopback for
 /// `seconds` and counts the transitions acknowledged per second. Training is held off (the replay
 /// never reaches its minimum) so that only ingestion is measured. The run directory is under the
 /// system's temporary directory: with `durability = "ack"`, its disk is what is measured.
-pub async fn ingest_one(seconds: f64, durability: Durability) -> Result<f64> {
+pub async fn ingest_one(seconds: f64, durability: Durability) -> Result<Ingested> {
     let dir = std::env::temp_dir().join(format!("learner-bench-ingest-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     let mut cfg = RunConfig::default();
@@ -310,13 +332,24 @@ pub async fn ingest_one(seconds: f64, durability: Durability) -> Result<f64> {
     let secs = start_t.elapsed().as_secs_f64();
     producer.abort();
     drop(acks);
+    let log_bytes = crate::service::status(&running.shared).replay_log_bytes;
     running.stop().await?;
+    let resume = if durability == Durability::Ack {
+        let t = Instant::now();
+        let again = start(ServeOptions { config: Some(cfg_path.clone()), resume: true, ..ServeOptions::default() }).await?;
+        let secs = t.elapsed().as_secs_f64();
+        let replay_size = crate::service::status(&again.shared).replay_size;
+        again.stop().await?;
+        Some(Resumed { log_bytes, secs, replay_size })
+    } else {
+        None
+    };
     let _ = std::fs::remove_dir_all(&dir);
     let _ = std::fs::remove_file(&cfg_path);
     if stored == 0 {
         bail!("no transition was acknowledged");
     }
-    Ok(stored as f64 / secs)
+    Ok(Ingested { transitions_per_sec: stored as f64 / secs, resume })
 }
 
 /// Runs a learner here (default configuration, so the paper network at the default camera) and
