@@ -54,7 +54,7 @@ impl Collector for LearnerCollector {
             ("learner_weights_version", "Version of the newest published weights.", c.weights_version as i64),
             ("learner_replay_size", "Transitions in replay.", replay_size),
             ("learner_replay_bytes", "Bytes used by replay.", replay_bytes),
-            ("learner_actors_connected", "Actors seen within the timeout.", connected.len() as i64),
+            ("learner_actors_connected", "Actors with an open experience stream, heard from within the timeout.", connected.len() as i64),
         ] {
             let m = ConstGauge::new(value);
             m.encode(enc.encode_descriptor(name, help, None, m.metric_type())?)?;

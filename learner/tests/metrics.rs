@@ -32,8 +32,11 @@ async fn metrics_are_served_in_the_prometheus_text_format() {
     assert!(head.to_ascii_lowercase().contains("content-type: text/plain; version=0.0.4"), "{head}");
     assert!(body.contains("# TYPE learner_updates_total counter\nlearner_updates_total 0\n"), "{body}");
     assert!(body.contains("# TYPE learner_loss gauge\nlearner_loss NaN\n"), "{body}");
-    assert!(body.contains("learner_actors_connected 1\n"), "{body}");
-    assert!(body.contains("learner_actor_weights_lag{actor=\"fake\"} "), "{body}");
+    // Registered but streaming nothing: not connected (`connected` means an open experience stream).
+    assert!(body.contains("learner_actors_connected 0\n"), "{body}");
+    // The per-actor family is declared; its series are the connected actors' (none here).
+    assert!(body.contains("# TYPE learner_actor_weights_lag gauge\n"), "{body}");
+    assert!(!body.contains("learner_actor_weights_lag{actor=\"fake\"} "), "{body}");
     for name in [
         "learner_env_steps_total",
         "learner_episodes_total",
