@@ -236,9 +236,9 @@ if kill -0 "$pid" 2>/dev/null; then
   [[ $(q 's["run_id"]') == "$run_id" ]] || fail "run id changed across the SIGKILL: $(q 's["run_id"]') (was $run_id)"
   # Each actor has at most one batch (64 steps) in flight: stored, maybe not yet durable, never
   # acknowledged.
-  is_true 's["replay_size"] + 3 * 64 >= int(args[0]) and s["weights_version"] > int(args[1]) and s["durability"] == "ack"' \
+  is_true 's["replay_size"] + 3 * 64 >= int(args[0]) and s["weights_version"] > int(args[1]) and s["reliability"]["durability"] == "ack"' \
     "$k_replay" "$k_version" || fail "after the SIGKILL: $(status) (before: replay $k_replay, version $k_version)"
-  pass "the learner came back from SIGKILL with its replay rebuilt: $(get '"replay %d (was %d), weights version %d (was %d), replay log %.1f MiB" % (s["replay_size"], int(args[0]), s["weights_version"], int(args[1]), s["replay_log_bytes"] / 1048576)' "$k_replay" "$k_version")"
+  pass "the learner came back from SIGKILL with its replay rebuilt: $(get '"replay %d (was %d), weights version %d (was %d), replay log %.1f MiB" % (s["replay_size"], int(args[0]), s["weights_version"], int(args[1]), s["reliability"]["replay_log_bytes"] / 1048576)' "$k_replay" "$k_version")"
   k_restart=$(get 's["weights_version"]')
   wait_for 180 "3 actors reconnected and streaming after the SIGKILL" is_true 'len(connected) == 3 and all(a["transitions"] > 0 for a in connected)'
   wait_for 60 "every actor acting with the restarted learner's weights" is_true 'len(connected) == 3 and all(a["weights_version"] >= int(args[0]) for a in connected)' "$k_restart"
