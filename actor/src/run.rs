@@ -535,7 +535,7 @@ fn step_loop(cfg: &RunConfig, link: &Link, n: usize, seed: u64, index: u32, batc
     let mut total_steps = 0u64;
     while !link.stop.load(Ordering::SeqCst) {
         if let Some((version, params)) = link.fresh_weights.lock().expect("weights lock").take() {
-            net.params = params;
+            net.set_params(params);
             link.acting_version.store(version, Ordering::SeqCst);
         }
         // One batched forward pass for all environments.

@@ -56,7 +56,8 @@ impl ConvGeom {
     }
 
     /// Rows each GEMM computes (the last line's two scratch rows would read past the padding).
-    fn rows(&self) -> usize {
+    #[must_use]
+    pub fn rows(&self) -> usize {
         self.h * self.pw() - 2
     }
 
@@ -118,29 +119,40 @@ pub fn add_k_major_to_candle(dk: &[f32], g: &ConvGeom, out: &mut [f32]) {
     }
 }
 
-/// Gathers every 3×3 patch of a padded image: row q holds the `(ky, kx, c)` values of output q.
-fn gather_patches(input: &[f32], g: &ConvGeom, patches: &mut [f32]) {
+/// Gathers the 3×3 patches of output rows `first..first + n` of a padded image into `patches`
+/// (`n` rows of `(ky, kx, c)` values).
+fn gather_patches(input: &[f32], g: &ConvGeom, first: usize, patches: &mut [f32]) {
     let (pw, c) = (g.pw(), g.cin);
     for (q, row) in patches.chunks_exact_mut(9 * c).enumerate() {
         for ky in 0..3 {
-            let src = (q + ky * pw) * c;
+            let src = (first + q + ky * pw) * c;
             row[ky * 3 * c..(ky + 1) * 3 * c].copy_from_slice(&input[src..src + 3 * c]);
         }
     }
 }
 
 /// Convolution of one padded image (`padded_in` floats) with the k-major kernel, bias excluded,
-/// into `out` (conv-out layout). `patches` is scratch of [`ConvGeom::patches_len`] floats.
+/// into `out` (conv-out layout), on `threads` of `gemm`'s threads. `patches` is scratch of
+/// [`ConvGeom::patches_len`] floats. (`fastnet::bands` splits one image's rows across threads
+/// instead, which pays off where `gemm`'s threading does not.)
 pub fn forward(input: &[f32], kernel: &[f32], g: &ConvGeom, out: &mut [f32], patches: &mut [f32], threads: usize) {
-    let (rows, cin, cout) = (g.rows(), g.cin, g.cout);
-    let dst = View::rows(0, rows, cout, cout);
+    let rows = g.rows();
+    let patch_row = if g.gathers() { 9 * g.cin } else { 0 };
+    forward_rows(input, kernel, g, 0, &mut out[..rows * g.cout], &mut patches[..rows * patch_row], threads);
+}
+
+/// Output rows `first..first + out.len() / cout` of [`forward`] (`patches` holds their patches
+/// when the layer gathers).
+pub fn forward_rows(input: &[f32], kernel: &[f32], g: &ConvGeom, first: usize, out: &mut [f32], patches: &mut [f32], threads: usize) {
+    let (cin, cout) = (g.cin, g.cout);
+    let n = out.len() / cout;
+    let dst = View::rows(0, n, cout, cout);
     if g.gathers() {
-        let patches = &mut patches[..g.patches_len()];
-        gather_patches(input, g, patches);
-        matmul(out, dst, false, patches, View::rows(0, rows, 9 * cin, 9 * cin), kernel, View::rows(0, 9 * cin, cout, cout), threads);
+        gather_patches(input, g, first, patches);
+        matmul(out, dst, false, patches, View::rows(0, n, 9 * cin, 9 * cin), kernel, View::rows(0, 9 * cin, cout, cout), threads);
     } else {
         for ky in 0..3 {
-            let lhs = View::rows(ky * g.pw() * cin, rows, 3 * cin, cin);
+            let lhs = View::rows((first + ky * g.pw()) * cin, n, 3 * cin, cin);
             let rhs = View::rows(ky * 3 * cin * cout, 3 * cin, cout, cout);
             matmul(out, dst, ky > 0, input, lhs, kernel, rhs, threads);
         }
@@ -156,7 +168,7 @@ pub fn kernel_grad(input: &[f32], grad_padded: &[f32], g: &ConvGeom, dk: &mut [f
     let grad = View::rows((g.pw() + 1) * cout, rows, cout, cout);
     if g.gathers() {
         let patches = &mut patches[..g.patches_len()];
-        gather_patches(input, g, patches);
+        gather_patches(input, g, 0, patches);
         let lhs = View::rows(0, rows, 9 * cin, 9 * cin).t();
         matmul(dk, View::rows(0, 9 * cin, cout, cout), true, patches, lhs, grad_padded, grad, threads);
     } else {

@@ -8,9 +8,11 @@
 //! - [`conv`]: 3×3 convolution forward, kernel gradient and input gradient of one image.
 //! - [`pool`]: fused bias + ReLU + 2×2 average pooling and its backward pass.
 //! - [`model`]: the whole network, forward and backward, over a batch.
+//! - [`bands`]: one image's layers split across threads (the actors' small batches).
 //! - [`inference`]: acting: greedy actions for a batch of observations.
 //! - [`params`]: parameters in candle's layout, their seeded initialisation, and Adam.
 
+pub mod bands;
 pub mod conv;
 pub mod gemm;
 pub mod inference;

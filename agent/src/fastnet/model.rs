@@ -4,9 +4,10 @@
 //! The convolution stack runs image by image, so the batch is split across threads with no
 //! synchronisation between layers; each thread keeps its own buffers and kernel-gradient partial
 //! sums (summed at the end, in a fixed order, so that results do not depend on timing). The dense
-//! layers run on the whole batch with `gemm`'s own threads. A batch smaller than the thread count
-//! (actors' inference) runs in one part with `gemm`'s threads inside each convolution instead.
+//! layers run on the whole batch with `gemm`'s own threads. A single image (an actor's inference)
+//! is split across the threads instead, by bands of lines and of units (`fastnet::bands`).
 
+use super::bands;
 use super::conv::{self, ConvGeom};
 use super::gemm::{View, matmul};
 use super::params::{CONV_B, CONV_W, FC1_B, FC1_W, FC2_B, FC2_W, Params, Q_B, Q_W};
@@ -49,6 +50,8 @@ pub struct FastNet {
     dx: Vec<f32>,
     dh1: Vec<f32>,
     dh2: Vec<f32>,
+    /// The dense layers' output, transposed, when one image is split across threads.
+    dense_t: Vec<f32>,
     k_major: [Vec<f32>; 3],
     flipped: [Vec<f32>; 3],
 }
@@ -76,6 +79,7 @@ impl FastNet {
             dx: Vec::new(),
             dh1: Vec::new(),
             dh2: Vec::new(),
+            dense_t: Vec::new(),
             k_major: Default::default(),
             flipped: Default::default(),
         }
@@ -123,6 +127,26 @@ impl FastNet {
     /// # Panics
     /// If the slices' lengths do not fit the network's shape.
     pub fn forward(&mut self, params: &Params, images: &[u8], scalars: &[f32]) -> &[f32] {
+        self.pack_kernels(params);
+        self.forward_packed(params, images, scalars)
+    }
+
+    /// Lays out the convolution kernels of `params` for the GEMMs (a copy of their weights):
+    /// what [`Self::forward`] does first. Inference packs once per weights version and then calls
+    /// [`Self::forward_packed`].
+    pub fn pack_kernels(&mut self, params: &Params) {
+        for (l, g) in self.geoms.iter().enumerate() {
+            conv::kernel_k_major(&params.values[CONV_W[l]], g, &mut self.k_major[l]);
+        }
+    }
+
+    /// [`Self::forward`] with the kernels of the last [`Self::pack_kernels`], which must have
+    /// been given the same `params`.
+    ///
+    /// # Panics
+    /// As [`Self::forward`], or if the kernels were never packed.
+    pub fn forward_packed(&mut self, params: &Params, images: &[u8], scalars: &[f32]) -> &[f32] {
+        assert!(!self.k_major[0].is_empty(), "forward_packed before pack_kernels");
         let s = self.shape;
         let frame = s.height * s.width * s.channels;
         let batch = images.len() / frame;
@@ -133,12 +157,10 @@ impl FastNet {
             scalars.len()
         );
         self.prepare(batch);
-        for (l, g) in self.geoms.iter().enumerate() {
-            conv::kernel_k_major(&params.values[CONV_W[l]], g, &mut self.k_major[l]);
-        }
         let flat = self.flat();
         let conv_flat = flat - s.scalars;
-        let gemm_threads = if self.parts.len() == 1 { self.threads } else { 1 };
+        // One part: the image's layers are split across the threads; several: one thread each.
+        let bands = if self.parts.len() == 1 { self.threads } else { 1 };
         let (geoms, k_major) = (&self.geoms, &self.k_major);
         let n = self.parts.len();
         let mut x_rest = &mut self.x[..];
@@ -147,18 +169,18 @@ impl FastNet {
                 let (x, rest) = std::mem::take(&mut x_rest).split_at_mut(part.images * flat);
                 x_rest = rest;
                 let imgs = &images[part.start * frame..(part.start + part.images) * frame];
-                let mut work = move || part.forward(geoms, k_major, params, imgs, x, flat, gemm_threads);
+                let mut work = move || part.forward(geoms, k_major, params, imgs, x, flat, bands);
                 if i + 1 == n { work() } else { drop(scope.spawn(work)) }
             }
         });
         for (row, sc) in self.x.chunks_exact_mut(flat).zip(scalars.chunks_exact(s.scalars.max(1))) {
             row[conv_flat..].copy_from_slice(&sc[..s.scalars]);
         }
-        let (h, t) = (s.hidden, self.threads);
-        let b = batch;
-        dense(&mut self.h1, &self.x, &params.values[FC1_W], &params.values[FC1_B], b, flat, h, true, t);
-        dense(&mut self.h2, &self.h1, &params.values[FC2_W], &params.values[FC2_B], b, h, h, true, t);
-        dense(&mut self.q, &self.h2, &params.values[Q_W], &params.values[Q_B], b, h, s.actions, false, t);
+        let (h, t, b) = (s.hidden, self.threads, batch);
+        let scratch = &mut self.dense_t;
+        dense(&mut self.h1, &self.x, &params.values[FC1_W], &params.values[FC1_B], (b, flat, h), true, t, scratch);
+        dense(&mut self.h2, &self.h1, &params.values[FC2_W], &params.values[FC2_B], (b, h, h), true, t, scratch);
+        dense(&mut self.q, &self.h2, &params.values[Q_W], &params.values[Q_B], (b, h, s.actions), false, t, scratch);
         &self.q
     }
 
@@ -218,7 +240,7 @@ impl Part {
         images: &[u8],
         x: &mut [f32],
         flat: usize,
-        threads: usize,
+        bands: usize,
     ) {
         let g0 = geoms[0];
         let frame = g0.h * g0.w * g0.cin;
@@ -235,13 +257,25 @@ impl Part {
             for (l, g) in geoms.iter().enumerate() {
                 let (pi, po) = (g.padded_in(), g.out_len());
                 let pre = &mut self.pre[l][img * po..(img + 1) * po];
-                conv::forward(&self.input[l][img * pi..(img + 1) * pi], &k_major[l], g, pre, &mut self.patches, threads);
+                let (inputs, next_inputs) = self.input.split_at_mut(l + 1);
+                let input = &inputs[l][img * pi..(img + 1) * pi];
                 let bias = &params.values[CONV_B[l]];
                 if l < 2 {
                     let next = &geoms[l + 1];
-                    let dst = &mut self.input[l + 1][img * next.padded_in()..(img + 1) * next.padded_in()];
-                    pool::forward(pre, bias, g.h, g.w, dst, Strided::padded(next.w, next.cin));
+                    let dst = &mut next_inputs[0][img * next.padded_in()..(img + 1) * next.padded_in()];
+                    let to = Strided::padded(next.w, next.cin);
+                    if bands > 1 {
+                        bands::conv_pool(input, &k_major[l], g, bias, pre, &mut self.patches, dst, to, bands);
+                    } else {
+                        conv::forward(input, &k_major[l], g, pre, &mut self.patches, 1);
+                        pool::forward(pre, bias, g.h, g.w, dst, to);
+                    }
                 } else {
+                    if bands > 1 {
+                        bands::conv(input, &k_major[l], g, pre, &mut self.patches, bands);
+                    } else {
+                        conv::forward(input, &k_major[l], g, pre, &mut self.patches, 1);
+                    }
                     let dst = &mut x[img * flat..(img + 1) * flat];
                     pool::forward(pre, bias, g.h, g.w, dst, Strided::channel_major(g.h / 2, g.w / 2));
                 }
@@ -303,10 +337,24 @@ fn weight_and_bias(grads: &mut Params, w: usize, b: usize) -> (&mut [f32], &mut 
     (&mut head[w], &mut tail[0])
 }
 
-/// `out = act(input · Wᵀ + bias)` for a candle `Linear` weight `W` (`n × k`).
+/// `out = act(input · Wᵀ + bias)` for a candle `Linear` weight `W` (`n × k`) and a batch of `b`;
+/// a batch smaller than the thread count is split by units (`scratch` holds the bands' output).
 #[allow(clippy::too_many_arguments)]
-fn dense(out: &mut [f32], input: &[f32], w: &[f32], bias: &[f32], b: usize, k: usize, n: usize, relu: bool, threads: usize) {
-    matmul(out, View::rows(0, b, n, n), false, input, View::rows(0, b, k, k), w, View::rows(0, n, k, k).t(), threads);
+fn dense(
+    out: &mut [f32],
+    input: &[f32],
+    w: &[f32],
+    bias: &[f32],
+    (b, k, n): (usize, usize, usize),
+    relu: bool,
+    threads: usize,
+    scratch: &mut Vec<f32>,
+) {
+    if b < threads {
+        bands::dense(out, input, w, b, k, n, scratch, threads);
+    } else {
+        matmul(out, View::rows(0, b, n, n), false, input, View::rows(0, b, k, k), w, View::rows(0, n, k, k).t(), threads);
+    }
     for row in out.chunks_exact_mut(n) {
         for (o, &bv) in row.iter_mut().zip(bias) {
             *o += bv;
