@@ -1,6 +1,7 @@
 //! Runs the paper network's forward pass in a loop, for profilers (`valgrind --tool=callgrind`,
 //! `perf record`): `cargo run --release -p agent --example forward -- 84x84x1 BATCH THREADS CALLS`.
-//! Prints the Q values' checksum so that the work cannot be optimised away.
+//! Prints the Q values' checksum (so that the work cannot be optimised away) and, on stderr, the
+//! median time per call.
 
 use agent::NetShape;
 use agent::fastnet::{FastNet, Params};
@@ -18,8 +19,13 @@ fn main() {
     let scalars = vec![0.5f32; batch * shape.scalars];
     let mut net = FastNet::new(shape, threads);
     let mut sum = 0f64;
+    let mut ms = Vec::with_capacity(calls);
     for _ in 0..calls {
+        let start = std::time::Instant::now();
         sum += net.forward(&params, &images, &scalars).iter().map(|&q| f64::from(q)).sum::<f64>();
+        ms.push(start.elapsed().as_secs_f64() * 1000.0);
     }
+    ms.sort_by(f64::total_cmp);
     println!("{sum}");
+    eprintln!("median {:.3} ms per call ({batch} images, {threads} threads)", ms[ms.len() / 2]);
 }

@@ -157,6 +157,22 @@ impl FastNet {
             scalars.len()
         );
         self.prepare(batch);
+        if self.parts.len() == 1 && self.threads > 1 {
+            // One image split across the threads: the whole pass runs on a worker of the pool, so
+            // that each layer's bands are handed to the other worker directly (local queue, a
+            // worker that is still awake) rather than injected from outside and woken for, six
+            // times per image.
+            rayon::scope(|_| self.run_forward(params, images, scalars, batch));
+        } else {
+            self.run_forward(params, images, scalars, batch);
+        }
+        &self.q
+    }
+
+    /// The body of [`Self::forward_packed`] once the buffers fit `batch`.
+    fn run_forward(&mut self, params: &Params, images: &[u8], scalars: &[f32], batch: usize) {
+        let s = self.shape;
+        let frame = s.height * s.width * s.channels;
         let flat = self.flat();
         let conv_flat = flat - s.scalars;
         // One part: the image's layers are split across the threads; several: one thread each.
@@ -181,7 +197,6 @@ impl FastNet {
         dense(&mut self.h1, &self.x, &params.values[FC1_W], &params.values[FC1_B], (b, flat, h), true, t, scratch);
         dense(&mut self.h2, &self.h1, &params.values[FC2_W], &params.values[FC2_B], (b, h, h), true, t, scratch);
         dense(&mut self.q, &self.h2, &params.values[Q_W], &params.values[Q_B], (b, h, s.actions), false, t, scratch);
-        &self.q
     }
 
     /// Gradients of every parameter (written into `grads`) given `dq`, the loss's gradient with
@@ -264,12 +279,7 @@ impl Part {
                     let next = &geoms[l + 1];
                     let dst = &mut next_inputs[0][img * next.padded_in()..(img + 1) * next.padded_in()];
                     let to = Strided::padded(next.w, next.cin);
-                    if bands > 1 {
-                        bands::conv_pool(input, &k_major[l], g, bias, pre, &mut self.patches, dst, to, bands);
-                    } else {
-                        conv::forward(input, &k_major[l], g, pre, &mut self.patches, 1);
-                        pool::forward(pre, bias, g.h, g.w, dst, to);
-                    }
+                    bands::conv_pool(input, &k_major[l], g, bias, pre, &mut self.patches, dst, to, bands);
                 } else {
                     if bands > 1 {
                         bands::conv(input, &k_major[l], g, pre, &mut self.patches, bands);
