@@ -1,6 +1,7 @@
-//! The actor process against a learner that refuses its batches as too large, or freezes: a
-//! learner in this process, the real `actor` binary, and (for the frozen learner) a TCP proxy in
-//! between that stops forwarding, which is what a SIGSTOPped learner looks like from the network.
+//! The actor process against a learner that refuses its batches as too large, freezes, or
+//! restarts: a learner in this process, the real `actor` binary, and a TCP proxy in between that
+//! stops forwarding (what a SIGSTOPped learner looks like from the network) or that keeps one
+//! address across the learner's restart.
 
 use std::path::Path;
 use std::process::{Child, Command, Stdio};
@@ -153,4 +154,67 @@ async fn an_actor_stops_within_its_flush_deadline_when_the_learner_is_frozen() {
     assert!(line.contains("WARN") && line.contains("unsent_steps"), "{line}");
     frozen.store(false, Ordering::SeqCst);
     learner.stop().await.unwrap();
+}
+
+/// A TCP proxy to whatever address `target` holds when a connection arrives (a connection is
+/// closed at once if nothing listens there): a learner's fixed address across its restarts.
+async fn movable_proxy(target: Arc<std::sync::Mutex<String>>) -> String {
+    let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+    let addr = listener.local_addr().unwrap().to_string();
+    let never_frozen = Arc::new(AtomicBool::new(false));
+    tokio::spawn(async move {
+        loop {
+            let Ok((client, _)) = listener.accept().await else { return };
+            let to = target.lock().unwrap().clone();
+            let Ok(server) = tokio::net::TcpStream::connect(&to).await else { continue };
+            let (cr, cw) = client.into_split();
+            let (sr, sw) = server.into_split();
+            tokio::spawn(pump(cr, sw, never_frozen.clone()));
+            tokio::spawn(pump(sr, cw, never_frozen.clone()));
+        }
+    });
+    addr
+}
+
+/// Found by the chaos test: after a learner restart, actors took up to 15.6 s to register again
+/// (and so to show the new weights in Status), because the wait before reconnecting had grown
+/// while the learner was down (0.5 s doubling to 30 s). The actor's weights poll, every second,
+/// notices the learner answering again and cuts that wait short. Here the learner is away 17 s
+/// (the wait has grown to 16 s ± 25 %) and the actor must be back within 6 s of its return.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn an_actor_registers_again_as_soon_as_a_restarted_learner_answers() {
+    let dir = tempfile::tempdir().unwrap();
+    let first = start_learner(dir.path(), |_| {}).await;
+    let target = Arc::new(std::sync::Mutex::new(first.addr.to_string()));
+    let proxy = movable_proxy(target.clone()).await;
+    let log = dir.path().join("a.log");
+    let mut a = spawn_actor(&proxy, "a", 16, &log);
+    let addr = first.addr.to_string();
+    let deadline = Instant::now() + Duration::from_secs(120);
+    while actor(&status(&addr).await, "a").is_none_or(|x| x.transitions == 0) {
+        assert!(Instant::now() < deadline, "the actor never streamed:\n{}", std::fs::read_to_string(&log).unwrap());
+        tokio::time::sleep(Duration::from_millis(200)).await;
+    }
+    first.stop().await.unwrap();
+    tokio::time::sleep(Duration::from_secs(17)).await;
+    let path = dir.path().join("run.toml");
+    let second = start(ServeOptions { config: Some(path), resume: true, ..ServeOptions::default() }).await.unwrap();
+    let addr = second.addr.to_string();
+    *target.lock().unwrap() = addr.clone();
+    let back = Instant::now();
+    loop {
+        if actor(&status(&addr).await, "a").is_some_and(|x| x.connected && x.transitions > 0) {
+            break;
+        }
+        assert!(a.try_wait().unwrap().is_none(), "the actor exited:\n{}", std::fs::read_to_string(&log).unwrap());
+        assert!(
+            back.elapsed() < Duration::from_secs(6),
+            "the actor is not streaming to the restarted learner 6 s after its return:\n{}",
+            std::fs::read_to_string(&log).unwrap()
+        );
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    }
+    a.kill().unwrap();
+    a.wait().unwrap();
+    second.stop().await.unwrap();
 }

@@ -7,12 +7,14 @@ mod drive;
 mod episode;
 mod eval;
 mod greedy;
+mod link;
 mod policy;
 mod predict;
 mod record;
 mod routes;
 mod run;
 mod split;
+mod stepping;
 #[cfg(test)]
 mod testing;
 mod train;

@@ -1,8 +1,8 @@
 //! `actor --learner ADDR`: one actor process. It registers with the learner (retrying with
-//! exponential backoff and jitter), runs N environments with the run's configuration, picks
-//! actions for all of them in one batched forward pass of the shared Q-network, explores
-//! ε-greedily, and streams the steps in batches. The network and the stepping loop never wait on
-//! the learner: steps go to a bounded outbox that a sender task drains, new weights are picked up
+//! exponential backoff and jitter), starts the stepping thread (`stepping.rs`: N environments,
+//! one batched forward pass, ε-greedy) and streams its steps in batches. The network and the
+//! stepping loop never wait on the learner: steps go to a bounded outbox (`link.rs`) that a
+//! sender task drains, new weights are picked up
 //! between steps, and a lost learner only means buffering, counting what overflowed, and
 //! reconnecting. SIGINT/SIGTERM: stop stepping, flush what can be sent within
 //! [`FLUSH_DEADLINE`] (even to a frozen learner), say how many steps could not be sent, exit 0.
@@ -12,7 +12,6 @@
 //! dropped and counted; WARN otherwise), and every failed stream is followed by a wait that grows
 //! from 0.5 s to 30 s (±25 %) until a batch is acknowledged again: never a tight reconnect loop.
 
-use std::collections::VecDeque;
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
@@ -20,18 +19,16 @@ use std::time::{Duration, Instant};
 
 use agent::NetShape;
 use agent::config::{AgentConfig, RunConfig};
-use agent::fastnet::{Inference, Params};
 use anyhow::{Context, Result};
 use proto::client::{ACTOR_ID_HEADER, Client, connect};
 use proto::v1 as pb;
-use rand::{Rng, RngExt, SeedableRng};
+use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use sim_core::config::EnvConfig;
-use sim_core::env::Env;
-use sim_core::scenario::Scenario;
-use sim_core::town::Town;
 
+use crate::link::{Link, Outbox};
 use crate::split::{Limits, fits, split};
+use crate::stepping::step_loop;
 
 /// How long a stopping actor keeps trying to hand its buffered steps to the learner.
 pub const FLUSH_DEADLINE: Duration = Duration::from_secs(5);
@@ -51,32 +48,6 @@ pub struct ActorOptions {
     /// Appends a JSON line per acknowledged batch to this file (for audits such as the chaos
     /// test: which batches the learner promised to keep, and where in its replay log).
     pub ack_log: Option<PathBuf>,
-}
-
-/// Steps waiting to be sent, bounded.
-#[derive(Debug, Default)]
-struct Outbox {
-    batches: VecDeque<(Vec<pb::Step>, Vec<pb::EpisodeSummary>, f32, u64)>,
-    steps: usize,
-    dropped: u64,
-}
-
-/// What the stepping thread and the network tasks share.
-#[derive(Debug)]
-struct Link {
-    outbox: Mutex<Outbox>,
-    /// Newest weights fetched, decoded and not yet acted with: (version, parameters). Decoded by
-    /// the weights task, so that the stepping thread only swaps them in.
-    fresh_weights: Mutex<Option<(u64, Params)>>,
-    /// Version the policy acts with.
-    acting_version: AtomicU64,
-    stop: AtomicBool,
-    /// The stepping thread has ended and handed over its last steps.
-    stepper_done: AtomicBool,
-    connected: AtomicBool,
-    env_steps: AtomicU64,
-    /// The id of the current registration (the weights poll names it).
-    actor_id: Mutex<String>,
 }
 
 /// Registers, retrying with exponential backoff (0.5 s doubling to 30 s, ±25 % jitter) until it
@@ -107,7 +78,7 @@ async fn register(
             Err(err) => {
                 let wait = delay * rng.random_range(0.75..1.25);
                 tracing::warn!(learner = %opts.learner, error = %format!("{err:#}"), retry_in_secs = format!("{wait:.1}"), "learner unreachable");
-                sleep_unless_stopped(link, Duration::from_secs_f64(wait)).await;
+                wait_to_retry(link, Duration::from_secs_f64(wait)).await;
                 delay = (delay * 2.0).min(30.0);
             }
         }
@@ -117,6 +88,20 @@ async fn register(
 async fn sleep_unless_stopped(link: &Link, d: Duration) {
     let end = Instant::now() + d;
     while Instant::now() < end && !link.stop.load(Ordering::SeqCst) {
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
+}
+
+/// A backoff wait before connecting again: ends early on stop, or when the weights poll finds the
+/// learner back after it was unreachable (a restarted learner: register again now, not after a
+/// backoff grown while it was down).
+async fn wait_to_retry(link: &Link, d: Duration) {
+    let end = Instant::now() + d;
+    while Instant::now() < end && !link.stop.load(Ordering::SeqCst) {
+        if link.learner_back.swap(false, Ordering::SeqCst) {
+            tracing::info!("the learner answers again: connecting now");
+            return;
+        }
         tokio::time::sleep(Duration::from_millis(50)).await;
     }
 }
@@ -136,6 +121,7 @@ pub async fn run(opts: ActorOptions) -> Result<()> {
         connected: AtomicBool::new(false),
         env_steps: AtomicU64::new(0),
         actor_id: Mutex::new(String::new()),
+        learner_back: AtomicBool::new(false),
     });
     let mut ack_log = AckLog::open(opts.ack_log.as_deref())?;
     {
@@ -301,7 +287,7 @@ async fn send_loop(
             StreamEnd::Failed => {
                 let wait = backoff.wait(rng);
                 tracing::info!(retry_in_secs = format!("{:.1}", wait.as_secs_f64()), "reconnecting after a wait");
-                sleep_unless_stopped(link, wait).await;
+                wait_to_retry(link, wait).await;
             }
         }
         match reconnect(opts, token, link, rng).await {
@@ -454,6 +440,7 @@ async fn reconnect(
 
 /// Polls for new weights every second; never blocks the stepping thread.
 async fn weights_loop(opts: ActorOptions, token: Option<String>, link: Arc<Link>, mut client: Client, shape: NetShape) {
+    let mut failing = false;
     loop {
         if link.stop.load(Ordering::SeqCst) {
             return;
@@ -462,6 +449,9 @@ async fn weights_loop(opts: ActorOptions, token: Option<String>, link: Arc<Link>
         let actor_id = link.actor_id.lock().expect("actor id lock").clone();
         match client.get_weights(pb::GetWeightsRequest { actor_id: actor_id.clone(), have_version: have }).await {
             Ok(w) => {
+                if std::mem::take(&mut failing) {
+                    link.learner_back.store(true, Ordering::SeqCst);
+                }
                 let w = w.into_inner();
                 // Any other version is newer: versions only grow within a run, also across the
                 // learner's restarts, and a learner of another run starts its own.
@@ -473,6 +463,7 @@ async fn weights_loop(opts: ActorOptions, token: Option<String>, link: Arc<Link>
                 }
             }
             Err(_) => {
+                failing = true;
                 // The learner may be restarting: try a new connection next time.
                 if let Ok(c) = connect(&opts.learner, token.clone()).await {
                     client = c;
@@ -500,109 +491,4 @@ async fn progress_loop(link: Arc<Link>) {
             "progress"
         );
     }
-}
-
-/// The environments and the policy: runs until stop.
-fn step_loop(cfg: &RunConfig, link: &Link, n: usize, seed: u64, index: u32, batch_steps: usize, buffer_steps: usize) -> Result<()> {
-    let town = Town::default_town();
-    anyhow::ensure!(cfg.env.camera.is_some(), "the run has no camera configured");
-    let shape = cfg.net_shape();
-    // One thread: an actor's batch is a few frames, and actors share the cores with each other
-    // and the learner.
-    let mut net = Inference::new(shape, cfg.agent.seed, 1);
-    let actions = cfg.agent.action_set.actions();
-    let mut rng = ChaCha8Rng::seed_from_u64(seed ^ (u64::from(index) << 32));
-    let mut envs: Vec<Env> = (0..n).map(|_| Env::new(town.clone(), cfg.env.clone())).collect::<Result<_, _>>()?;
-    let mut episode = vec![0u64; n];
-    let mut t = vec![0u32; n];
-    let mut returns = vec![0f64; n];
-    let mut pending: Vec<pb::Step> = Vec::new();
-    let mut summaries: Vec<pb::EpisodeSummary> = Vec::new();
-    // The wire form of an observation (it takes the image the environment already copied out).
-    let wire = |o: sim_core::env::Observation| -> pb::Observation {
-        pb::Observation {
-            image: o.image.map(|i| i.data).unwrap_or_default(),
-            speed: o.speed,
-            d: o.d.unwrap_or(0.0),
-            path: o.path.map(Vec::from).unwrap_or_default(),
-        }
-    };
-    let episode_seed = |rng: &mut ChaCha8Rng| rng.next_u64();
-    for (k, env) in envs.iter_mut().enumerate() {
-        env.reset(episode_seed(&mut rng), Scenario::Random)?;
-        pending.push(pb::Step { env: k as u32, episode: 0, t: 0, obs: Some(wire(env.observation())), ..pb::Step::default() });
-    }
-    let mut total_steps = 0u64;
-    while !link.stop.load(Ordering::SeqCst) {
-        if let Some((version, params)) = link.fresh_weights.lock().expect("weights lock").take() {
-            net.set_params(params);
-            link.acting_version.store(version, Ordering::SeqCst);
-        }
-        // One batched forward pass for all environments.
-        let scalars: Vec<f32> = envs.iter().flat_map(|e| agent::features::scalar_features(cfg, &agent::features::env_scalars(e))).collect();
-        let greedy = net.greedy(envs.iter().map(|e| e.image().data.as_slice()), &scalars);
-        let epsilon = cfg.epsilon(index, total_steps);
-        for (k, env) in envs.iter_mut().enumerate() {
-            let a = if rng.random::<f32>() < epsilon { rng.random_range(0..actions.len()) as u32 } else { greedy[k] };
-            let r = env.step(actions[a as usize])?;
-            t[k] += 1;
-            returns[k] += f64::from(r.reward);
-            pending.push(pb::Step {
-                env: k as u32,
-                episode: episode[k],
-                t: t[k],
-                obs: Some(wire(r.observation)),
-                action: a,
-                reward: r.reward,
-                terminated: r.terminated,
-                truncated: r.truncated,
-            });
-            if r.terminated || r.truncated {
-                summaries.push(pb::EpisodeSummary {
-                    env: k as u32,
-                    episode: episode[k],
-                    episode_return: returns[k] as f32,
-                    steps: t[k],
-                    arrived: r.info.arrived,
-                    collision: r.info.collision.map(|c| c.name().to_owned()).unwrap_or_default(),
-                    scenario: "random".into(),
-                });
-                episode[k] += 1;
-                t[k] = 0;
-                returns[k] = 0.0;
-                env.reset(episode_seed(&mut rng), Scenario::Random)?;
-                pending.push(pb::Step {
-                    env: k as u32,
-                    episode: episode[k],
-                    t: 0,
-                    obs: Some(wire(env.observation())),
-                    ..pb::Step::default()
-                });
-            }
-        }
-        total_steps += n as u64;
-        link.env_steps.store(total_steps, Ordering::SeqCst);
-        if pending.len() >= batch_steps {
-            let steps = std::mem::take(&mut pending);
-            let eps = std::mem::take(&mut summaries);
-            let mut ob = link.outbox.lock().expect("outbox lock");
-            ob.steps += steps.len();
-            ob.batches.push_back((steps, eps, epsilon, link.acting_version.load(Ordering::SeqCst)));
-            // Bounded: drop the oldest batches while over the limit — never the front one, which
-            // may be in flight, nor the newest.
-            while ob.steps > buffer_steps && ob.batches.len() > 2 {
-                let (s, _, _, _) = ob.batches.remove(1).expect("more than two batches");
-                ob.steps -= s.len();
-                ob.dropped += s.len() as u64;
-                tracing::warn!(dropped = s.len(), "outbox full: oldest steps dropped");
-            }
-        }
-    }
-    // Hand over what is left for the final flush.
-    if !pending.is_empty() {
-        let mut ob = link.outbox.lock().expect("outbox lock");
-        ob.steps += pending.len();
-        ob.batches.push_back((pending, summaries, cfg.epsilon(index, total_steps), link.acting_version.load(Ordering::SeqCst)));
-    }
-    Ok(())
 }

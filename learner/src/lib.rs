@@ -17,6 +17,7 @@ pub mod serve;
 pub mod service;
 pub mod state;
 pub mod status;
+pub mod sum_tree;
 pub mod tfevents;
 pub mod train;
 pub mod validate;

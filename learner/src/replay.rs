@@ -18,6 +18,8 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use sim_core::env::PATH_FEATURES;
 
+use crate::sum_tree::SumTree;
+
 /// Sizes and options of a replay buffer.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ReplayConfig {
@@ -425,51 +427,6 @@ impl Replay {
                 tree.set(slot, p.powf(self.cfg.alpha));
             }
         }
-    }
-}
-
-/// A sum tree over `n` leaves: set a leaf, read the total, find the leaf at a prefix sum.
-#[derive(Debug, Clone)]
-struct SumTree {
-    n: usize,
-    tree: Vec<f64>,
-}
-
-impl SumTree {
-    fn new(n: usize) -> Self {
-        let size = n.next_power_of_two();
-        Self { n: size, tree: vec![0.0; 2 * size] }
-    }
-
-    fn set(&mut self, leaf: usize, value: f32) {
-        let mut i = leaf + self.n;
-        self.tree[i] = f64::from(value);
-        while i > 1 {
-            i /= 2;
-            self.tree[i] = self.tree[2 * i] + self.tree[2 * i + 1];
-        }
-    }
-
-    fn get(&self, leaf: usize) -> f32 {
-        self.tree[leaf + self.n] as f32
-    }
-
-    fn total(&self) -> f64 {
-        self.tree[1]
-    }
-
-    /// The leaf where the running sum passes `u` (0 ≤ u < total).
-    fn find(&self, mut u: f64) -> usize {
-        let mut i = 1;
-        while i < self.n {
-            if u < self.tree[2 * i] || self.tree[2 * i + 1] <= 0.0 {
-                i *= 2;
-            } else {
-                u -= self.tree[2 * i];
-                i = 2 * i + 1;
-            }
-        }
-        i - self.n
     }
 }
 
