@@ -192,7 +192,7 @@ results="$out_dir/RESULTS.md"
     echo
     echo "## Figure 5: learning curves"
     echo
-    echo "![Normalised smoothed return per episode, loss and mean Q of both runs](figures/curves.png)"
+    echo "![Smoothed episode return, loss, mean Q and greedy evaluations of both runs against minutes of training](figures/curves.png)"
     echo
     if [[ "$smoke" == 1 ]]; then
         echo "## Smoke configuration (\`$runs_dir/hybrid.toml\`; the end-to-end one differs in the preset)"

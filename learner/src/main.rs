@@ -72,16 +72,27 @@ enum Command {
         #[arg(long, default_value_t = 3.0)]
         timeout: f64,
     },
-    /// Draw learning curves (normalised reward per episode like the paper's Figure 5, loss,
-    /// mean Q) of one or more run directories into a PNG.
+    /// Draw learning curves of run directories into a PNG, panels stacked on one x axis: the
+    /// smoothed episode return, the loss, the mean Q and (with `eval.jsonl`) the periodic greedy
+    /// evaluations. Each run is resampled onto a grid of 200 points across the x range, so lines
+    /// are continuous where there is data and break where a run has none. One agent over several
+    /// seeds (`--run-dir LABEL=DIR1,DIR2,...`) is one colour: the mean over its seeds with a shaded
+    /// band from their minimum to their maximum.
     Plot {
-        /// A run directory (repeat for several runs on one chart).
-        #[arg(long = "run-dir", required = true)]
-        run_dirs: Vec<PathBuf>,
+        /// `DIR`: one run, one line (named after the directory). `LABEL=DIR1,DIR2,...`: one agent
+        /// over several seeds, one line (the mean, with a min–max band) named "LABEL (N seeds)".
+        /// Repeat for several lines on one chart; the forms mix. Write `./a=b` for a directory whose
+        /// name contains `=`.
+        #[arg(long = "run-dir", required = true, value_name = "DIR|LABEL=DIR,...", value_parser = learner::plot::RunGroup::parse)]
+        run_dirs: Vec<learner::plot::RunGroup>,
         /// Output PNG file.
         #[arg(long)]
         out: PathBuf,
-        /// Moving-average window, episodes.
+        /// The x axis of every panel: `minutes` (of training, summed over resumes) or `env-steps`.
+        #[arg(long = "x", value_name = "AXIS", default_value = "minutes", value_parser = learner::plot::XAxis::parse)]
+        x: learner::plot::XAxis,
+        /// Moving-average window of the return, in episodes (widened to all the episodes of a grid
+        /// cell, 1/199 of the x range, when that holds more).
         #[arg(long, default_value_t = 50)]
         smoothing: usize,
     },
@@ -195,6 +206,34 @@ fn print_result(v: &serde_json::Value, json: bool) {
     }
 }
 
+/// A plotted run: "NAME: E episodes, T training records" and what its evaluations showed.
+fn run_line(r: &learner::plot::RunSummary) -> String {
+    let group = if r.group != r.name { format!(" [{}]", r.group) } else { String::new() };
+    let mut line = format!("{}{group}: {} episodes, {} training records", r.name, r.episodes, r.train_points);
+    if r.eval_points > 0 {
+        line += &format!(", {} evaluations", r.eval_points);
+        match r.minutes_to_competence {
+            Some(m) => line += &format!(", competent ({}+ of 7 route types) after {m:.1} min", learner::plot::COMPETENT_ROUTE_TYPES),
+            None => line += ", not competent yet",
+        }
+    }
+    line
+}
+
+/// A plotted group of several runs: its seeds' mean final return and time to competence.
+fn group_line(g: &learner::plot::GroupSummary) -> String {
+    let mut line = format!("{} ({} seeds):", g.label, g.runs);
+    match g.mean_final_smoothed_return {
+        Some(v) => line += &format!(" final smoothed return {v:.2} (mean over seeds)"),
+        None => line += " no episodes",
+    }
+    line += &format!(", competent in {} of {} seeds", g.competent_runs, g.runs);
+    if let Some(m) = g.mean_minutes_to_competence {
+        line += &format!(" (after {m:.1} min on average)");
+    }
+    line
+}
+
 fn main() -> Result<()> {
     tracing_subscriber::fmt()
         .with_writer(std::io::stderr)
@@ -257,14 +296,17 @@ fn main() -> Result<()> {
                 print!("{}", agent::config_docs::commented_toml(&cfg));
                 Ok(())
             }
-            Command::Plot { run_dirs, out, smoothing } => {
+            Command::Plot { run_dirs, out, x, smoothing } => {
                 if smoothing == 0 {
                     anyhow::bail!("--smoothing must be at least 1 episode");
                 }
-                let opts = learner::plot::PlotOptions { smoothing, ..learner::plot::PlotOptions::default() };
-                let summary = learner::plot::plot_runs(&run_dirs, &out, &opts)?;
+                let opts = learner::plot::PlotOptions { smoothing, x, ..learner::plot::PlotOptions::default() };
+                let summary = learner::plot::plot_groups(&run_dirs, &out, &opts)?;
                 for r in &summary.runs {
-                    println!("{}: {} episodes, {} training records", r.name, r.episodes, r.train_points);
+                    println!("{}", run_line(r));
+                }
+                for g in summary.groups.iter().filter(|g| g.runs > 1) {
+                    println!("{}", group_line(g));
                 }
                 println!("wrote {}", out.display());
                 Ok(())

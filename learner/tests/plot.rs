@@ -1,5 +1,6 @@
 //! The learning-curve plotter on synthetic run directories: it renders a non-blank PNG of the
-//! requested size, and reads the metrics files strictly except for a truncated last line.
+//! requested size, draws a group of seeds as a line over a band, and reads the metrics files
+//! strictly except for a truncated last line.
 
 use std::collections::HashMap;
 use std::fmt::Write as _;
@@ -7,7 +8,7 @@ use std::fs;
 use std::io::BufReader;
 use std::path::{Path, PathBuf};
 
-use learner::plot::{PlotError, PlotOptions, plot_runs};
+use learner::plot::{PlotError, PlotOptions, RunGroup, XAxis, plot_groups, plot_runs};
 use learner::records::{EpisodeRecord, RecordsError, TrainRecord, read_episodes, read_train};
 
 /// A small deterministic noise source in [-1, 1).
@@ -222,7 +223,7 @@ fn empty_runs_are_plotted_as_empty() {
     let short = tmp.path().join("short");
     synthetic_run(&short, 7, 1.0, 4);
     let out = tmp.path().join("out.png");
-    let opts = PlotOptions { smoothing: 10, width: 640, height: 480 };
+    let opts = PlotOptions { smoothing: 10, width: 640, height: 480, ..PlotOptions::default() };
     let summary = plot_runs(&[empty.clone(), short], &out, &opts).unwrap();
     assert_eq!(summary.runs[0].name, "empty");
     assert_eq!((summary.runs[0].episodes, summary.runs[0].train_points, summary.runs[0].final_smoothed_return), (0, 0, None));
@@ -286,4 +287,51 @@ fn periodic_evaluations_get_a_panel_and_give_the_time_to_competence() {
         px[(w * h * 3 / 4) as usize..].iter().filter(|p| p.iter().max().unwrap() - p.iter().min().unwrap() > 40).count()
     };
     assert!(bottom_colour_pixels(&out) > bottom_colour_pixels(&tmp.path().join("plain.png")) + 100);
+}
+
+#[test]
+fn a_group_of_seeds_draws_its_mean_over_a_band_beside_a_single_run() {
+    let tmp = tempfile::tempdir().unwrap();
+    let seeds: Vec<PathBuf> = (0..3).map(|s| tmp.path().join(format!("hybrid-seed{s}"))).collect();
+    for (s, dir) in seeds.iter().enumerate() {
+        synthetic_run(dir, 300, 8.0 + 2.0 * s as f64, 10 + s as u64);
+    }
+    let single = tmp.path().join("drl");
+    synthetic_run(&single, 300, 0.0, 20);
+    let group_arg = format!("hybrid={}", seeds.iter().map(|d| d.display().to_string()).collect::<Vec<_>>().join(","));
+    let groups = [RunGroup::parse(&group_arg).unwrap(), RunGroup::parse(single.to_str().unwrap()).unwrap()];
+    assert_eq!((groups[0].label(), groups[0].dirs()), (Some("hybrid"), seeds.as_slice()));
+
+    for x in [XAxis::Minutes, XAxis::EnvSteps] {
+        let out = tmp.path().join(format!("seeds-{x:?}.png"));
+        let opts = PlotOptions { x, ..PlotOptions::default() };
+        let summary = plot_groups(&groups, &out, &opts).unwrap();
+        let run_groups: Vec<&str> = summary.runs.iter().map(|r| r.group.as_str()).collect();
+        assert_eq!(run_groups, ["hybrid", "hybrid", "hybrid", "drl"]);
+        let lines: Vec<(&str, usize)> = summary.groups.iter().map(|g| (g.label.as_str(), g.runs)).collect();
+        assert_eq!(lines, [("hybrid", 3), ("drl", 1)]);
+        let finals: Vec<f64> = summary.runs[..3].iter().map(|r| r.final_smoothed_return.unwrap()).collect();
+        let mean = summary.groups[0].mean_final_smoothed_return.unwrap();
+        assert!((mean - finals.iter().sum::<f64>() / 3.0).abs() < 1e-9, "{mean} {finals:?}");
+
+        assert!(fs::read(&out).unwrap().starts_with(b"\x89PNG\r\n\x1a\n"), "{} is not a PNG", out.display());
+        let (w, h, pixels) = decode_png(&out);
+        assert_eq!((w, h), (opts.width, opts.height));
+        // Both lines, in their own colours (blue and orange, the first two).
+        let colours = line_colours(&pixels, 1000);
+        assert!(colours.contains(&[31, 119, 180]) && colours.contains(&[255, 127, 14]), "{x:?}: {colours:?}");
+        // The group's band: its blue at 20% over white (or over a light grid line).
+        let band =
+            pixels.iter().filter(|p| (200..=222).contains(&p[0]) && (220..=234).contains(&p[1]) && (234..=244).contains(&p[2])).count();
+        assert!(band > 2000, "{x:?}: {band} band pixels");
+    }
+
+    // A group of one run draws no band: no band-coloured pixels.
+    let one = [RunGroup::labelled("hybrid", vec![seeds[0].clone()]).unwrap()];
+    let out = tmp.path().join("one.png");
+    let summary = plot_groups(&one, &out, &PlotOptions::default()).unwrap();
+    assert_eq!((summary.groups[0].label.as_str(), summary.groups[0].runs), ("hybrid", 1));
+    let (_, _, pixels) = decode_png(&out);
+    let band = pixels.iter().filter(|p| (200..=222).contains(&p[0]) && (220..=234).contains(&p[1]) && (234..=244).contains(&p[2])).count();
+    assert!(band < 200, "{band} band pixels without a band");
 }

@@ -1,5 +1,6 @@
-//! Drawing the curves with plotters: three panels (normalised return, loss on a log axis, mean
-//! Q), round-number ticks, a legend placed away from the data, and the embedded font.
+//! Drawing the curves with plotters: the panels (smoothed return, loss on a log axis, mean Q,
+//! greedy evaluations) on one x axis, lines in pieces over shaded bands, round-number ticks, a
+//! legend placed away from the data, and the embedded font.
 
 use std::ops::Range;
 use std::path::Path;
@@ -10,9 +11,10 @@ use plotters::coord::ranged1d::{AsRangedCoord, DefaultFormatting, KeyPointHint, 
 use plotters::prelude::*;
 
 use super::error::PlotError;
+use super::grid::XAxis;
 use super::series::{Curves, Series, bounds};
 
-/// Line colours of the runs, in order (cycled past ten runs).
+/// Line colours of the groups of runs, in order (cycled past ten).
 pub(super) const COLOURS: [RGBColor; 10] = [
     RGBColor(31, 119, 180),
     RGBColor(255, 127, 14),
@@ -50,77 +52,59 @@ impl TextSizes {
     }
 }
 
-/// Draws the three panels and writes the PNG; errors as text.
+/// Draws the panels and writes the PNG; errors as text.
 pub(super) fn draw(out: &Path, (width, height): (u32, u32), smoothing: usize, curves: &Curves) -> Result<(), String> {
-    let Curves { reward, return_bounds, loss, mean_q, evals } = curves;
-    let return_bounds = *return_bounds;
+    let Curves { x_axis, x, returns, loss, mean_q, evals, with_eval } = curves;
     let root = BitMapBackend::new(out, (width, height)).into_drawing_area();
     root.fill(&WHITE).map_err(|e| e.to_string())?;
     // A fourth panel when any run has periodic greedy evaluations.
-    let with_eval = evals.iter().any(|s| !s.points.is_empty());
-    let rows = if with_eval { 4 } else { 3 };
+    let rows = if *with_eval { 4 } else { 3 };
     let panels = root.split_evenly((rows, 1));
     let sizes = TextSizes::for_panel(height / rows as u32);
-
-    let x_episodes = x_range(reward);
-    let episode_desc = match return_bounds {
-        Some((min, max)) if max > min => format!("episode   (normalised: 0 = return {}, 1 = return {})", fmt_value(min), fmt_value(max)),
-        Some((v, _)) => format!("episode   (all smoothed returns are {})", fmt_value(v)),
-        None => "episode".into(),
+    let x_fmt: &dyn Fn(&f64) -> String = match x_axis {
+        // Minutes may be fractional (a short run); steps are counted.
+        XAxis::Minutes => &|v: &f64| fmt_value(*v),
+        XAxis::EnvSteps => &|v: &f64| fmt_count(*v),
     };
-    let reward_title = format!("Normalised reward vs episode (moving average of {} episodes)", smoothing);
-    let reward_panel = Panel { title: &reward_title, x_desc: &episode_desc, y_desc: "normalised return", sizes: &sizes };
-    reward_panel.draw(&panels[0], x_episodes, -0.02..1.02, reward, &|v| fmt_value(*v)).map_err(|e| e.to_string())?;
+    let panel = |title: &str, y_desc: &'static str, series: &[Series]| Panel {
+        // Say what the band is wherever one is drawn.
+        title: if series.iter().any(|s| s.band) { format!("{title}; over seeds: mean, shaded min–max") } else { title.to_string() },
+        x_desc: x_axis.description(),
+        y_desc,
+        x_fmt,
+        sizes: &sizes,
+    };
+    let y_bounds = |series: &[Series]| bounds(series.iter().flat_map(|s| s.points().map(|p| p.1)));
 
-    let loss_bounds = bounds(loss.iter().flat_map(|s| s.points.iter().map(|p| p.1)));
-    let x_loss = x_range(loss);
-    match loss_bounds {
+    let title = format!("Smoothed episode return vs {x_axis} (mean of the last {smoothing} episodes)");
+    panel(&title, "episode return", returns)
+        .draw(&panels[0], x.clone(), padded(y_bounds(returns)), returns, &|v| fmt_value(*v))
+        .map_err(|e| e.to_string())?;
+
+    match y_bounds(loss) {
         Some((lo, hi)) if lo > 0.0 => {
             // Log scale: plot log10(loss) on a linear axis with ticks at 1, 2, 5 × 10^k.
             let range = padded(Some((lo.log10(), hi.log10())));
             let (ticks, minor) = log_ticks(&range);
-            let log_loss: Vec<Series> = loss
-                .iter()
-                .map(|s| Series {
-                    label: s.label.clone(),
-                    colour: s.colour,
-                    points: s.points.iter().map(|&(x, y)| (x, y.log10())).collect(),
-                })
-                .collect();
-            let panel = Panel { title: "Loss", x_desc: "learner step", y_desc: "loss (log scale)", sizes: &sizes };
-            panel.draw(&panels[1], x_loss, TickedAxis { range, ticks, minor }, &log_loss, &|v| fmt_value(10f64.powf(*v)))
+            let log_loss: Vec<Series> = loss.iter().map(|s| s.map_y(f64::log10)).collect();
+            panel("Loss", "loss (log scale)", loss)
+                .draw(&panels[1], x.clone(), TickedAxis { range, ticks, minor }, &log_loss, &|v| fmt_value(10f64.powf(*v)))
         }
-        b => {
-            let panel = Panel { title: "Loss", x_desc: "learner step", y_desc: "loss", sizes: &sizes };
-            panel.draw(&panels[1], x_loss, padded(b), loss, &|v| fmt_value(*v))
-        }
+        b => panel("Loss", "loss", loss).draw(&panels[1], x.clone(), padded(b), loss, &|v| fmt_value(*v)),
     }
     .map_err(|e| e.to_string())?;
 
-    let q_bounds = bounds(mean_q.iter().flat_map(|s| s.points.iter().map(|p| p.1)));
-    let panel = Panel { title: "Mean Q", x_desc: "learner step", y_desc: "mean Q", sizes: &sizes };
-    panel.draw(&panels[2], x_range(mean_q), padded(q_bounds), mean_q, &|v| fmt_value(*v)).map_err(|e| e.to_string())?;
+    panel("Mean Q", "mean Q", mean_q)
+        .draw(&panels[2], x.clone(), padded(y_bounds(mean_q)), mean_q, &|v| fmt_value(*v))
+        .map_err(|e| e.to_string())?;
 
-    if with_eval {
-        let panel = Panel {
-            title: "Greedy evaluation: route types completed in at least half their runs",
-            x_desc: "minutes of training",
-            y_desc: "route types (of 7)",
-            sizes: &sizes,
-        };
-        panel.draw(&panels[3], x_range(evals), -0.2..7.2, evals, &|v| fmt_value(*v)).map_err(|e| e.to_string())?;
+    if *with_eval {
+        panel("Greedy evaluation: route types completed in at least half their runs", "route types (of 7)", evals)
+            .draw(&panels[3], x.clone(), -0.2..7.2, evals, &|v| fmt_value(*v))
+            .map_err(|e| e.to_string())?;
     }
 
     root.present().map_err(|e| e.to_string())
-}
-
-/// The x range covering every series' points (0..1 with none).
-fn x_range(series: &[Series]) -> Range<f64> {
-    match bounds(series.iter().flat_map(|s| s.points.iter().map(|p| p.0))) {
-        Some((lo, hi)) if hi > lo => lo..hi,
-        Some((lo, _)) => lo - 1.0..lo + 1.0,
-        None => 0.0..1.0,
-    }
 }
 
 /// A linear y range around `bounds`, with 5% margins (0..1 with no data).
@@ -202,9 +186,9 @@ fn legend_corner(series: &[Series], x: Range<f64>, y: Range<f64>) -> SeriesLabel
         (SeriesLabelPosition::LowerLeft, false, false),
     ];
     let near = |right: bool, upper: bool| {
-        let points = series.iter().flat_map(|s| s.points.iter());
+        let points = series.iter().flat_map(Series::points);
         points
-            .filter(|&&(px, py)| {
+            .filter(|&(px, py)| {
                 let (fx, fy) = (frac(px, &x), frac(py, &y));
                 (if right { fx > 0.5 } else { fx < 0.5 }) && (if upper { fy > 0.6 } else { fy < 0.4 })
             })
@@ -216,9 +200,10 @@ fn legend_corner(series: &[Series], x: Range<f64>, y: Range<f64>) -> SeriesLabel
 }
 
 struct Panel<'a> {
-    title: &'a str,
+    title: String,
     x_desc: &'a str,
     y_desc: &'a str,
+    x_fmt: &'a dyn Fn(&f64) -> String,
     sizes: &'a TextSizes,
 }
 
@@ -238,7 +223,7 @@ impl Panel<'_> {
     {
         let s = self.sizes;
         let mut chart = ChartBuilder::on(area)
-            .caption(self.title, (FONT_FAMILY, s.caption))
+            .caption(&self.title, (FONT_FAMILY, s.caption))
             .margin(8)
             .margin_right(20)
             .x_label_area_size(s.labels * 2 + s.axis_desc + 6)
@@ -250,25 +235,43 @@ impl Panel<'_> {
             .y_desc(self.y_desc)
             .axis_desc_style((FONT_FAMILY, s.axis_desc))
             .label_style((FONT_FAMILY, s.labels))
-            .x_label_formatter(&|v| fmt_count(*v))
+            .x_label_formatter(self.x_fmt)
             .y_label_formatter(y_fmt)
             .light_line_style(RGBColor(235, 235, 235))
             .bold_line_style(RGBColor(200, 200, 200))
             .draw()?;
-        let mut any = false;
+        // Bands first, so that every line is drawn over them.
+        for s in series.iter().filter(|s| s.band) {
+            let fill = s.colour.mix(0.2).filled();
+            chart.draw_series(s.pieces.iter().filter(|p| p.len() > 1).map(|p| {
+                let upper = p.iter().map(|b| (b.x, b.max));
+                let lower = p.iter().rev().map(|b| (b.x, b.min));
+                Polygon::new(upper.chain(lower).collect::<Vec<_>>(), fill)
+            }))?;
+        }
         for s in series {
             let colour = s.colour;
-            if s.points.len() == 1 {
-                chart.draw_series(s.points.iter().map(|&p| Circle::new(p, 3, colour.filled())))?;
-            } else {
-                chart.draw_series(LineSeries::new(s.points.iter().copied(), colour.stroke_width(2)))?;
+            for piece in &s.pieces {
+                if let [only] = piece.as_slice() {
+                    chart.draw_series(std::iter::once(Circle::new((only.x, only.mean), 3, colour.filled())))?;
+                } else {
+                    chart.draw_series(LineSeries::new(piece.iter().map(|b| (b.x, b.mean)), colour.stroke_width(2)))?;
+                }
             }
-            chart
-                .draw_series(std::iter::empty::<Circle<(f64, f64), i32>>())?
-                .label(s.label.as_str())
-                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], colour.stroke_width(3)));
-            any |= !s.points.is_empty();
+            chart.draw_series(s.markers.iter().map(|&p| Circle::new(p, 3, colour.filled())))?;
+            let entry = chart.draw_series(std::iter::empty::<Circle<(f64, f64), i32>>())?.label(s.label.as_str());
+            if s.band {
+                let fill = colour.mix(0.2).filled();
+                entry.legend(move |(x, y)| {
+                    EmptyElement::at((x, y))
+                        + Rectangle::new([(0, -6), (20, 6)], fill)
+                        + PathElement::new(vec![(0, 0), (20, 0)], colour.stroke_width(3))
+                });
+            } else {
+                entry.legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], colour.stroke_width(3)));
+            }
         }
+        let any = series.iter().any(|s| !s.pieces.is_empty() || !s.markers.is_empty());
         let legend = legend_corner(series, chart.x_range(), chart.y_range());
         chart
             .configure_series_labels()

@@ -11,6 +11,11 @@ pub enum PlotError {
     NoRuns,
     #[error("invalid plot options: {0}")]
     Options(String),
+    /// A `--run-dir` argument that is neither `DIR` nor `LABEL=DIR1,DIR2,...`.
+    #[error("--run-dir `{arg}`: {reason} (expected DIR, or LABEL=DIR1,DIR2,... for one agent over several seeds)")]
+    RunArg { arg: String, reason: String },
+    #[error("x axis `{value}`: expected `minutes` or `env-steps`")]
+    XAxis { value: String },
     #[error("run directory {} has no {EPISODES_FILE}", dir.display())]
     MissingEpisodes { dir: PathBuf },
     #[error("reading {}: {source}", path.display())]

@@ -1,12 +1,14 @@
-//! The curves of a plot: each run's metrics read back and turned into series (trailing moving
-//! average of the return, normalised over all runs; loss and mean Q as recorded).
+//! The curves of a plot: each run's metrics read back, and the series drawn from them (one per
+//! group of runs and panel, on the grid of `grid.rs`).
 
 use std::fs;
+use std::ops::Range;
 use std::path::Path;
 
 use plotters::style::RGBColor;
 
 use super::error::PlotError;
+use super::grid::{BandPoint, XAxis};
 use crate::records::{EPISODES_FILE, EVAL_FILE, EpisodeRecord, EvalRecord, TRAIN_FILE, TrainRecord, read_episodes, read_eval, read_train};
 
 /// One run's data, read.
@@ -45,13 +47,13 @@ pub(super) fn run_name(dir: &Path) -> String {
     }
 }
 
-/// Appends " #2", " #3", … to names that an earlier run already has.
-pub(super) fn disambiguate_names(runs: &mut [Run]) {
-    let names: Vec<String> = runs.iter().map(|r| r.name.clone()).collect();
-    for (i, run) in runs.iter_mut().enumerate() {
-        let earlier = names[..i].iter().filter(|n| **n == names[i]).count();
+/// Appends " #2", " #3", … to names that an earlier one already has.
+pub(super) fn disambiguate(names: &mut [String]) {
+    let original = names.to_vec();
+    for (i, name) in names.iter_mut().enumerate() {
+        let earlier = original[..i].iter().filter(|n| **n == original[i]).count();
         if earlier > 0 {
-            run.name = format!("{} #{}", names[i], earlier + 1);
+            *name = format!("{} #{}", original[i], earlier + 1);
         }
     }
 }
@@ -62,43 +64,52 @@ pub(super) fn effective_window(smoothing: usize, n: usize) -> usize {
     smoothing.min(n.div_ceil(2)).max(1)
 }
 
-/// Trailing moving average over full windows of `window` values: the point at `i` (for
-/// `i >= window - 1`) is the mean of `values[i + 1 - window..=i]`.
-pub(super) fn moving_average(values: &[f64], window: usize) -> Vec<f64> {
-    assert!(window >= 1);
-    if values.len() < window {
-        return Vec::new();
-    }
-    let mut out = Vec::with_capacity(values.len() + 1 - window);
-    let mut sum: f64 = values[..window].iter().sum();
-    out.push(sum / window as f64);
-    for i in window..values.len() {
-        sum += values[i] - values[i - window];
-        out.push(sum / window as f64);
-    }
-    out
-}
-
-/// Maps `v` from `[min, max]` to `[0, 1]`; to 0.5 when the range is empty.
-pub(super) fn normalise(v: f64, min: f64, max: f64) -> f64 {
-    if max > min { (v - min) / (max - min) } else { 0.5 }
-}
-
-/// Every curve of a plot, one series per run in each panel.
+/// Every curve of a plot, one series per group of runs in each panel, all on one x axis.
 pub(super) struct Curves {
-    /// Smoothed returns, normalised over all runs, and the bounds they were normalised with.
-    pub(super) reward: Vec<Series>,
-    pub(super) return_bounds: Option<(f64, f64)>,
+    /// The x axis and the range of every panel (the grid's).
+    pub(super) x_axis: XAxis,
+    pub(super) x: Range<f64>,
+    /// Smoothed episode returns.
+    pub(super) returns: Vec<Series>,
     pub(super) loss: Vec<Series>,
     pub(super) mean_q: Vec<Series>,
-    /// Route types mastered by periodic greedy evaluations, against minutes.
+    /// Route types mastered by periodic greedy evaluations.
     pub(super) evals: Vec<Series>,
+    /// Whether any run has periodic greedy evaluations (the fourth panel).
+    pub(super) with_eval: bool,
 }
 
+/// One group's line in a panel.
 pub(super) struct Series {
     pub(super) label: String,
     pub(super) colour: RGBColor,
-    pub(super) points: Vec<(f64, f64)>,
+    /// The line, in pieces broken where no run of the group has data: the mean over the runs, with
+    /// their min and max.
+    pub(super) pieces: Vec<Vec<BandPoint>>,
+    /// Whether to shade the band between min and max (a group of several runs).
+    pub(super) band: bool,
+    /// Points marked with a dot as well (a single run's evaluations, few and discrete).
+    pub(super) markers: Vec<(f64, f64)>,
+}
+
+impl Series {
+    /// Every (x, y) drawn: the line's means, the band's edges, the markers.
+    pub(super) fn points(&self) -> impl Iterator<Item = (f64, f64)> + '_ {
+        let line = self.pieces.iter().flatten().flat_map(|p| [(p.x, p.mean), (p.x, p.min), (p.x, p.max)]);
+        line.chain(self.markers.iter().copied())
+    }
+
+    /// The same series with `f` applied to every y (the loss panel's log scale).
+    pub(super) fn map_y(&self, f: impl Fn(f64) -> f64) -> Series {
+        let map = |b: &BandPoint| BandPoint { x: b.x, mean: f(b.mean), min: f(b.min), max: f(b.max) };
+        Series {
+            label: self.label.clone(),
+            colour: self.colour,
+            pieces: self.pieces.iter().map(|p| p.iter().map(map).collect()).collect(),
+            band: self.band,
+            markers: self.markers.iter().map(|&(x, y)| (x, f(y))).collect(),
+        }
+    }
 }
 
 /// The smallest and largest finite values, if any.
@@ -114,14 +125,6 @@ mod tests {
     use super::*;
 
     #[test]
-    fn moving_average_uses_full_windows() {
-        assert_eq!(moving_average(&[1.0, 2.0, 3.0, 4.0], 2), vec![1.5, 2.5, 3.5]);
-        assert_eq!(moving_average(&[1.0, 2.0, 3.0], 3), vec![2.0]);
-        assert_eq!(moving_average(&[1.0, 2.0], 3), Vec::<f64>::new());
-        assert_eq!(moving_average(&[5.0, 7.0], 1), vec![5.0, 7.0]);
-    }
-
-    #[test]
     fn short_runs_shrink_the_window() {
         assert_eq!(effective_window(50, 1000), 50);
         assert_eq!(effective_window(50, 100), 50);
@@ -132,20 +135,15 @@ mod tests {
     }
 
     #[test]
-    fn normalisation_maps_to_unit_interval() {
-        assert_eq!(normalise(5.0, 0.0, 10.0), 0.5);
-        assert_eq!(normalise(-2.0, -2.0, 2.0), 0.0);
-        assert_eq!(normalise(3.0, 3.0, 3.0), 0.5);
+    fn bounds_skip_non_finite_values() {
         assert_eq!(bounds([3.0, f64::NAN, -1.0, 2.0].into_iter()), Some((-1.0, 3.0)));
         assert_eq!(bounds(std::iter::empty()), None);
     }
 
     #[test]
     fn duplicate_names_are_numbered() {
-        let run = |name: &str| Run { name: name.into(), episodes: Vec::new(), train: Vec::new(), eval: Vec::new() };
-        let mut runs = vec![run("a"), run("b"), run("a"), run("a")];
-        disambiguate_names(&mut runs);
-        let names: Vec<_> = runs.iter().map(|r| r.name.as_str()).collect();
+        let mut names: Vec<String> = ["a", "b", "a", "a"].map(String::from).to_vec();
+        disambiguate(&mut names);
         assert_eq!(names, ["a", "b", "a #2", "a #3"]);
     }
 }
