@@ -25,14 +25,39 @@ async fn start_learner(dir: &Path, edit: impl FnOnce(&mut RunConfig)) -> Running
     start(ServeOptions { config: Some(path), ..ServeOptions::default() }).await.unwrap()
 }
 
-fn spawn_actor(addr: &str, name: &str, batch_steps: u32, log: &Path) -> Child {
-    Command::new(env!("CARGO_BIN_EXE_actor"))
+/// An actor process that is killed when the test ends, also when it fails: an actor reconnects
+/// forever, so one left behind by a failed assertion would keep a core busy.
+struct ActorProcess(Child);
+
+impl std::ops::Deref for ActorProcess {
+    type Target = Child;
+    fn deref(&self) -> &Child {
+        &self.0
+    }
+}
+
+impl std::ops::DerefMut for ActorProcess {
+    fn deref_mut(&mut self) -> &mut Child {
+        &mut self.0
+    }
+}
+
+impl Drop for ActorProcess {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+fn spawn_actor(addr: &str, name: &str, batch_steps: u32, log: &Path) -> ActorProcess {
+    let child = Command::new(env!("CARGO_BIN_EXE_actor"))
         .args(["--learner", addr, "--envs", "2", "--id", name, "--batch-steps", &batch_steps.to_string()])
         .env("RUST_LOG", "info")
         .stdout(Stdio::null())
         .stderr(std::fs::File::create(log).unwrap())
         .spawn()
-        .unwrap()
+        .unwrap();
+    ActorProcess(child)
 }
 
 async fn status(addr: &str) -> pb::StatusResponse {
@@ -180,7 +205,8 @@ async fn movable_proxy(target: Arc<std::sync::Mutex<String>>) -> String {
 /// (and so to show the new weights in Status), because the wait before reconnecting had grown
 /// while the learner was down (0.5 s doubling to 30 s). The actor's weights poll, every second,
 /// notices the learner answering again and cuts that wait short. Here the learner is away 17 s
-/// (the wait has grown to 16 s ± 25 %) and the actor must be back within 6 s of its return.
+/// (the wait has grown to 16 s ± 25 %) and the actor must be back within 6 s of its return, and
+/// say that it connected because the learner answered.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn an_actor_registers_again_as_soon_as_a_restarted_learner_answers() {
     let dir = tempfile::tempdir().unwrap();
@@ -214,6 +240,10 @@ async fn an_actor_registers_again_as_soon_as_a_restarted_learner_answers() {
         );
         tokio::time::sleep(Duration::from_millis(100)).await;
     }
+    // Back because the poll noticed, not because a grown wait happened to end in time (which the
+    // jitter sometimes allows).
+    let text = std::fs::read_to_string(&log).unwrap();
+    assert!(text.contains("the learner answers again: connecting now"), "{text}");
     a.kill().unwrap();
     a.wait().unwrap();
     second.stop().await.unwrap();
