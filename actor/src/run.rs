@@ -86,19 +86,22 @@ async fn register(
 }
 
 async fn sleep_unless_stopped(link: &Link, d: Duration) {
-    let end = Instant::now() + d;
-    while Instant::now() < end && !link.stop.load(Ordering::SeqCst) {
-        tokio::time::sleep(Duration::from_millis(50)).await;
-    }
+    sleep_until(link, d, false).await;
 }
 
 /// A backoff wait before connecting again: ends early on stop, or when the weights poll finds the
 /// learner back after it was unreachable (a restarted learner: register again now, not after a
 /// backoff grown while it was down).
 async fn wait_to_retry(link: &Link, d: Duration) {
+    sleep_until(link, d, true).await;
+}
+
+/// Sleeps `d` in steps of 50 ms, ending early on stop or, with `until_learner_back`, when the
+/// learner answers again (the notice is consumed).
+async fn sleep_until(link: &Link, d: Duration, until_learner_back: bool) {
     let end = Instant::now() + d;
     while Instant::now() < end && !link.stop.load(Ordering::SeqCst) {
-        if link.learner_back.swap(false, Ordering::SeqCst) {
+        if until_learner_back && link.learner_back.swap(false, Ordering::SeqCst) {
             tracing::info!("the learner answers again: connecting now");
             return;
         }
