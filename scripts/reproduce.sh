@@ -1,62 +1,91 @@
 #!/usr/bin/env bash
-# Reproduces the paper's experiment in one command: trains the hybrid agent (preset
-# `hybrid-tuned`, or `paper` with --paper) and the end-to-end agent (`end-to-end-tuned`, or
-# `end-to-end`) with the same wall-clock budget and seed, one after
-# the other, evaluates both beside the model-based baseline on the seven routes (`actor eval`),
-# plots their learning curves (`learner plot`), and writes a results page with the table, the
-# figure, the exact commands, the budget and the machine.
+# The experiment of docs/RESULTS.md in one command: trains every agent with several seeds and the
+# same budget of environment steps, evaluates each run greedily on the town it trained on and on
+# a held-out town it never saw, searches settings for the end-to-end baseline, and writes the
+# table with bootstrap confidence intervals (docs/RESULTS.md), the raw numbers
+# (docs/results.json) and the figures (docs/figures/).
 #
-# Ctrl-C stops the current step (training writes a checkpoint); running the same command again
-# resumes: each training run continues to the same total budget, then evaluation and plotting run.
+# Each (agent, seed) run keeps what the results need in docs/results/AGENT/seedS/ (its evaluations,
+# its periodic evaluations, its training curves thinned to at most 2,000 episodes, a run.json); a
+# run whose run.json exists is done and is skipped. So the script is resumable at two levels: a
+# stopped training run continues from its checkpoint in the runs directory to the same budget, and
+# a finished run is never trained again, even from a fresh clone (its results are committed).
 #
-# Usage: scripts/reproduce.sh [--minutes M] [--seed S] [--runs N] [--actors N] [--envs N] [--paper]
+# Usage: scripts/reproduce.sh [--seeds N] [--env-steps N] [--agents A,B] [--runs N] [--report-only]
 #                             [--runs-dir DIR] [--out-dir DIR] [--smoke] [--no-build]
 set -euo pipefail
 
+# name | preset | TOML added to the preset's file ("\n" between lines) | what it is
+agents=(
+    "hybrid-tuned|hybrid-tuned||the tuned hybrid agent: the default of actor train"
+    "hybrid-paper-inputs|hybrid-tuned|[agent]\npath_features = false|the tuned hybrid agent with the paper's planner input only (unsigned d, no path features)"
+    "paper|paper||the paper's hybrid agent as published (84x84, one-step DQN)"
+    "end-to-end|end-to-end||the paper's end-to-end baseline as published (84x84, one-step DQN, no r_w)"
+)
+# The search for the end-to-end baseline's settings: seed 1 each; the best (scripts/results.py
+# best-end-to-end: periodic evaluations, not the final one) then runs the other seeds.
+search=(
+    "e2e-tuned|end-to-end-tuned||end-to-end with the hybrid agent's tuning (48x48, double DQN, 3-step, eps over 100k)"
+    "e2e-one-step|end-to-end-tuned|[agent]\nn_step = 1|the tuning with one-step targets (a collision reaches fewer states)"
+    "e2e-slow-eps|end-to-end-tuned|[agent]\nepsilon_decay_steps = 300000|the tuning with exploration decayed over 300k steps, not 100k"
+)
+
 usage() {
     cat <<'EOF'
-scripts/reproduce.sh — train, evaluate and plot the hybrid and the end-to-end agent.
+scripts/reproduce.sh — the experiment of docs/RESULTS.md: agents × seeds, two towns, intervals.
 
-  --minutes M     training budget per agent, wall-clock minutes (default 90)
-  --seed S        seed of both runs: network initialisation, replay, actors (default 1)
-  --runs N        evaluation runs per route (default 5)
-  --actors N      local actor processes per training run (default 1: on 2 cores it already
-                  feeds the learner at its replay ratio)
-  --envs N        environments per actor (default 4)
-  --paper         train the paper-faithful presets `paper` and `end-to-end` instead of the
-                  tuned `hybrid-tuned` and `end-to-end-tuned` (see `learner config --help`)
-  --runs-dir DIR  where the two run directories go (default runs/reproduce, or runs/smoke)
-  --out-dir DIR   where RESULTS.md, the figure and the JSON go (default docs, or runs/smoke)
-  --smoke         a test of the pipeline: tiny camera (32x32) and network (8 filters, 32
-                  units), short warm-up, 2 evaluation runs; pair with e.g. --minutes 1
+  --seeds N       seeds per agent, 1..N (default 3)
+  --env-steps N   training budget per run, environment steps (default 400000); wall time is
+                  recorded beside it
+  --agents A,B    train only these agents (names below; `search` for the end-to-end search,
+                  `e2e-best` for the search's winner); the report still covers every finished run
+  --runs N        evaluation runs per route and town (default 5)
+  --eval-every M  minutes between periodic greedy evaluations during training (default 1)
+  --report-only   train nothing: rebuild the tables, results.json and figures from docs/results
+  --runs-dir DIR  where the training run directories go (default runs/reproduce)
+  --out-dir DIR   where RESULTS.md, results.json, results/ and figures/ go (default docs)
+  --smoke         a test of the pipeline: tiny camera and network, 30k steps, 2 seeds, 1 run;
+                  writes to runs/smoke
   --no-build      use the binaries in target/release as they are
   -h, --help      this text
 
-Rerunning the same command resumes: training continues each run to the same total budget.
+Agents (each with --seeds seeds):
 EOF
+    for v in "${agents[@]}"; do
+        IFS='|' read -r name _ _ what <<<"$v"
+        printf '  %-20s %s\n' "$name" "$what"
+    done
+    echo
+    echo "End-to-end search (seed 1 each; the best, by periodic evaluation, runs the other seeds):"
+    for v in "${search[@]}"; do
+        IFS='|' read -r name _ _ what <<<"$v"
+        printf '  %-20s %s\n' "$name" "$what"
+    done
+    echo
+    echo "Rerunning the same command resumes; finished runs (docs/results/AGENT/seedS/run.json) are skipped."
 }
 
-minutes=90
-seed=1
+seeds=3
+env_steps=400000
+only=""
 runs=""
-actors=1
-envs=4
-paper=0
+eval_every=1
+report_only=0
 runs_dir=""
 out_dir=""
 smoke=0
 build=1
 while [[ $# -gt 0 ]]; do
     case "$1" in
-        --minutes) minutes="${2:?--minutes needs a number}"; shift 2 ;;
-        --seed) seed="${2:?--seed needs a number}"; shift 2 ;;
+        --seeds) seeds="${2:?--seeds needs a number}"; shift 2 ;;
+        --env-steps) env_steps="${2:?--env-steps needs a number}"; shift 2 ;;
+        --agents) only="${2:?--agents needs names}"; shift 2 ;;
         --runs) runs="${2:?--runs needs a number}"; shift 2 ;;
-        --actors) actors="${2:?--actors needs a number}"; shift 2 ;;
-        --envs) envs="${2:?--envs needs a number}"; shift 2 ;;
+        --eval-every) eval_every="${2:?--eval-every needs minutes}"; shift 2 ;;
+        --report-only) report_only=1; shift ;;
         --runs-dir) runs_dir="${2:?--runs-dir needs a directory}"; shift 2 ;;
         --out-dir) out_dir="${2:?--out-dir needs a directory}"; shift 2 ;;
         --smoke) smoke=1; shift ;;
-        --paper) paper=1; shift ;;
         --no-build) build=0; shift ;;
         -h|--help) usage; exit 0 ;;
         *) echo "reproduce.sh: unknown argument \`$1\` (see --help)" >&2; exit 2 ;;
@@ -64,16 +93,30 @@ while [[ $# -gt 0 ]]; do
 done
 # shellcheck source=scripts/lib.sh
 source "$(dirname "$0")/lib.sh"
-require_positive reproduce.sh "minutes:$minutes" "seed:$seed" "actors:$actors" "envs:$envs" "runs:${runs:-1}"
 if [[ "$smoke" == 1 ]]; then
-    runs_dir="${runs_dir:-runs/smoke}"
+    runs_dir="${runs_dir:-runs/smoke/runs}"
     out_dir="${out_dir:-runs/smoke}"
-    runs="${runs:-2}"
+    runs="${runs:-1}"
+    [[ "$env_steps" == 400000 ]] && env_steps=30000
+    [[ "$seeds" == 3 ]] && seeds=2
 else
     runs_dir="${runs_dir:-runs/reproduce}"
     out_dir="${out_dir:-docs}"
     runs="${runs:-5}"
 fi
+require_positive reproduce.sh "seeds:$seeds" "env-steps:$env_steps" "runs:$runs" "eval-every:$eval_every"
+if ! [[ "$seeds" =~ ^[0-9]+$ && "$env_steps" =~ ^[0-9]+$ && "$runs" =~ ^[0-9]+$ ]]; then
+    echo "reproduce.sh: --seeds, --env-steps and --runs take whole numbers" >&2
+    exit 2
+fi
+known=" search e2e-best "
+for v in "${agents[@]}" "${search[@]}"; do known+="${v%%|*} "; done
+for name in ${only//,/ }; do
+    if [[ "$known" != *" $name "* ]]; then
+        echo "reproduce.sh: --agents: unknown agent \`$name\`; expected some of:$known" >&2
+        exit 2
+    fi
+done
 
 cd "$(dirname "$0")/.."
 trap 'echo; echo "reproduce.sh: interrupted — run the same command again to resume." >&2; exit 130' INT TERM
@@ -81,137 +124,118 @@ trap 'echo; echo "reproduce.sh: interrupted — run the same command again to re
 bin="${CARGO_TARGET_DIR:-target}/release"
 actor="$bin/actor"
 learner="$bin/learner"
-commands=()
-# Prints a command, records it for the results page, runs it.
-run() {
-    echo "+ $*" >&2
-    commands+=("$*")
-    "$@"
+results="$out_dir/results"
+if [[ "$build" == 1 && "$report_only" == 0 ]]; then
+    echo "+ cargo build --release --locked -p actor -p learner" >&2
+    cargo build --release --locked -p actor -p learner
+fi
+mkdir -p "$runs_dir" "$results" "$out_dir/figures"
+
+# wanted NAME: whether --agents asks for NAME (or did not choose).
+wanted() {
+    [[ -z "$only" ]] && return 0
+    [[ ",$only," == *",$1,"* ]]
 }
 
-started=$(date -u +%Y-%m-%dT%H:%M:%SZ)
-load_before=$(cut -d' ' -f1-3 /proc/loadavg)
-if [[ "$build" == 1 ]]; then
-    run cargo build --release --locked -p actor -p learner
-fi
-mkdir -p "$runs_dir" "$out_dir/figures"
-
-agents=(hybrid end-to-end)
-if [[ "$paper" == 1 ]]; then
-    declare -A preset=([hybrid]=paper [end-to-end]=end-to-end)
-else
-    declare -A preset=([hybrid]=hybrid-tuned [end-to-end]=end-to-end-tuned)
-fi
-declare -A train_secs=()
-for agent in "${agents[@]}"; do
-    dir="$runs_dir/$agent"
-    config_args=(--preset "${preset[$agent]}")
-    if [[ "$smoke" == 1 ]]; then
-        mkdir -p "$runs_dir"
-        cfg="$runs_dir/$agent.toml"
-        cat >"$cfg" <<EOF
-# Smoke test of the pipeline: the ${preset[$agent]} preset with a tiny camera and network.
-preset = "${preset[$agent]}"
-
-[env.camera]
-width = 32
-height = 32
-
-[agent]
-conv_filters = 8
-hidden = 32
-min_replay = 256
-replay_ratio = 1.0
-target_update_period = 100
-epsilon_decay_steps = 20000
-
-[service]
-checkpoint_interval_secs = 60
+# config_for NAME PRESET EXTRA FILE: writes the run's configuration file.
+config_for() {
+    local name="$1" preset="$2" extra="$3" file="$4"
+    {
+        echo "# $name: the \`$preset\` preset$([[ -n "$extra" ]] && echo " with the lines below")."
+        echo "preset = \"$preset\""
+        if [[ -n "$extra" ]]; then
+            echo
+            printf '%b\n' "$extra"
+        fi
+        if [[ "$smoke" == 1 ]]; then
+            # Smoke test of the pipeline only: a tiny camera and network, a short warm-up.
+            echo
+            echo "[env.camera]"
+            echo "width = 24"
+            echo "height = 24"
+            if [[ "$extra" != *"[agent]"* ]]; then echo; echo "[agent]"; fi
+            echo "conv_filters = 4"
+            echo "hidden = 16"
+            echo "min_replay = 512"
+        fi
+    } >"$file"
+    # A TOML table may appear once: the smoke lines go into the extra's [agent] when it has one.
+    if [[ "$smoke" == 1 && "$extra" == *"[agent]"* ]]; then
+        python3 - "$file" <<'EOF'
+import sys
+p = sys.argv[1]
+lines = open(p).read().splitlines()
+smoke = ["conv_filters = 4", "hidden = 16", "min_replay = 512"]
+body = [l for l in lines if l not in smoke]
+i = body.index("[agent]")
+open(p, "w").write("\n".join(body[: i + 1] + smoke + body[i + 1 :]) + "\n")
 EOF
-        config_args=(--config "$cfg")
     fi
-    echo "== training $agent for up to $minutes min (run directory $dir)" >&2
+}
+
+# train_and_evaluate NAME PRESET EXTRA SEED: one run, skipped when its run.json exists.
+train_and_evaluate() {
+    local name="$1" preset="$2" extra="$3" seed="$4"
+    local dir="$runs_dir/$name/seed$seed" out="$results/$name/seed$seed"
+    if [[ -f "$out/run.json" ]]; then
+        echo "== $name seed $seed: done ($out/run.json)" >&2
+        return
+    fi
+    mkdir -p "$dir" "$out"
+    local cfg="$out/config.toml"
+    [[ -f "$cfg" ]] || config_for "$name" "$preset" "$extra" "$cfg"
+    local started load_before t0
+    started=$(date -u +%Y-%m-%dT%H:%M:%SZ)
+    load_before=$(cut -d' ' -f1-3 /proc/loadavg)
     t0=$(date +%s)
-    run "$actor" train "${config_args[@]}" --run-dir "$dir" --seed "$seed" --max-minutes "$minutes" \
-        --actors "$actors" --envs "$envs"
-    train_secs[$agent]=$(( $(date +%s) - t0 ))
-done
+    echo "== $name seed $seed: training to $env_steps env steps (run directory $dir)" >&2
+    echo "+ $actor train --config $cfg --run-dir $dir --seed $seed --max-env-steps $env_steps --eval-every $eval_every" >&2
+    # The actors and environments of README's command (actor train's defaults, 1 × 4), so that the
+    # minutes to competence are what a user of that command sees.
+    "$actor" train --config "$cfg" --run-dir "$dir" --seed "$seed" --max-env-steps "$env_steps" \
+        --eval-every "$eval_every"
+    local session_secs=$(( $(date +%s) - t0 ))
+    for town in default_town held_out_town; do
+        echo "== $name seed $seed: evaluating on $town ($runs runs per route)" >&2
+        "$actor" eval --checkpoint "$dir" --name "$name" --town "$town" --runs "$runs" --seed 0 \
+            --json-out "$out/eval-$town.json" >/dev/null
+    done
+    python3 scripts/results.py keep-run --run-dir "$dir" --out "$out" --name "$name" --preset "$preset" \
+        --seed "$seed" --env-steps-budget "$env_steps" --started "$started" --load-before "$load_before" \
+        --session-secs "$session_secs" --commit "$(git rev-parse --short HEAD 2>/dev/null || echo unknown)"
+}
 
-echo "== evaluating both agents beside the model-based baseline ($runs runs per route)" >&2
-table="$out_dir/results-table.md"
-run "$actor" eval --checkpoint "$runs_dir/hybrid" --name hybrid --checkpoint "$runs_dir/end-to-end" --name end-to-end \
-    --runs "$runs" --seed 0 --markdown --json-out "$out_dir/results.json" >"$table.tmp"
-mv "$table.tmp" "$table"
-
-echo "== plotting the learning curves" >&2
-figure="$out_dir/figures/curves.png"
-run "$learner" plot --run-dir "$runs_dir/hybrid" --run-dir "$runs_dir/end-to-end" --out "$figure" >&2
-
-finished=$(date -u +%Y-%m-%dT%H:%M:%SZ)
-load_after=$(cut -d' ' -f1-3 /proc/loadavg)
-cpu=$(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2- | sed 's/^ *//' || true)
-mem=$(awk '/MemTotal/ {printf "%.1f GiB", $2 / 1048576}' /proc/meminfo || true)
-commit=$(git rev-parse --short HEAD 2>/dev/null || echo unknown)
-if [[ -n "$(git status --porcelain 2>/dev/null | grep -v '^??' || true)" ]]; then
-    commit="$commit (with uncommitted changes)"
+if [[ "$report_only" == 0 ]]; then
+    for v in "${agents[@]:0:1}"; do
+        IFS='|' read -r name preset extra _ <<<"$v"
+        if wanted "$name"; then
+            for seed in $(seq 1 "$seeds"); do train_and_evaluate "$name" "$preset" "$extra" "$seed"; done
+        fi
+    done
+    for v in "${search[@]}"; do
+        IFS='|' read -r name preset extra _ <<<"$v"
+        if wanted search || wanted "$name"; then train_and_evaluate "$name" "$preset" "$extra" 1; fi
+    done
+    if wanted e2e-best && [[ "$seeds" -gt 1 ]]; then
+        best=$(python3 scripts/results.py best-end-to-end --results "$results") || {
+            echo "reproduce.sh: the end-to-end search has not finished (run --agents search first)" >&2
+            exit 1
+        }
+        echo "== the end-to-end search's best: $best" >&2
+        for v in "${search[@]}"; do
+            IFS='|' read -r name preset extra _ <<<"$v"
+            if [[ "$name" == "$best" ]]; then
+                for seed in $(seq 2 "$seeds"); do train_and_evaluate "$name" "$preset" "$extra" "$seed"; done
+            fi
+        done
+    fi
+    for v in "${agents[@]:1}"; do
+        IFS='|' read -r name preset extra _ <<<"$v"
+        if wanted "$name"; then
+            for seed in $(seq 1 "$seeds"); do train_and_evaluate "$name" "$preset" "$extra" "$seed"; done
+        fi
+    done
 fi
-invocation="scripts/reproduce.sh --minutes $minutes --seed $seed --runs $runs --actors $actors --envs $envs"
-[[ "$paper" == 1 ]] && invocation="$invocation --paper"
-[[ "$smoke" == 1 ]] && invocation="$invocation --smoke"
 
-results="$out_dir/RESULTS.md"
-{
-    echo "# Results: hybrid vs end-to-end DQN on the paper's seven routes"
-    echo
-    if [[ "$smoke" == 1 ]]; then
-        echo "> **Smoke run of the tooling, not the experiment**: a tiny camera and network trained for"
-        echo "> $minutes min per agent. The numbers below say nothing about the method; they show the pipeline"
-        echo "> works end to end. The experiment is \`scripts/reproduce.sh\` (90 min per agent)."
-    elif awk "BEGIN { exit !($minutes < 90) }"; then
-        echo "> Budget of $minutes min per agent; the experiment allows up to 90."
-    fi
-    echo
-    echo "Reproduce with:"
-    echo
-    echo '```sh'
-    echo "$invocation"
-    echo '```'
-    echo
-    echo "Each agent trained for at most **$minutes min** of wall-clock time (\`actor train --max-minutes\`),"
-    echo "one after the other on the same machine, seed $seed, $actors actor process(es) × $envs environments,"
-    echo "presets \`${preset[hybrid]}\` and \`${preset[end-to-end]}\` (\`learner config --preset NAME\` prints them):"
-    echo "hybrid ${train_secs[hybrid]} s, end-to-end ${train_secs[end-to-end]} s in this session (a resumed run"
-    echo "counts its earlier sessions toward the budget). Evaluation: greedy (ε = 0), $runs runs per route"
-    echo "(seeds 0..$((runs - 1)), different traffic), every agent scored with the paper's reward."
-    echo
-    echo "## Table I"
-    echo
-    cat "$table"
-    echo
-    echo "Raw numbers: [\`results.json\`](results.json) (\`actor eval --json\` format)."
-    echo
-    echo "## Figure 5: learning curves"
-    echo
-    echo "![Smoothed episode return, loss, mean Q and greedy evaluations of both runs against minutes of training](figures/curves.png)"
-    echo
-    if [[ "$smoke" == 1 ]]; then
-        echo "## Smoke configuration (\`$runs_dir/hybrid.toml\`; the end-to-end one differs in the preset)"
-        echo
-        echo '```toml'
-        cat "$runs_dir/hybrid.toml"
-        echo '```'
-        echo
-    fi
-    echo "## Machine"
-    echo
-    echo "- CPU: ${cpu:-unknown}, $(nproc) cores visible (\`nproc\`), memory $mem"
-    echo "- load average (1, 5, 15 min): $load_before at the start, $load_after at the end"
-    echo "- started $started, finished $finished; commit $commit"
-    echo
-    echo "## Commands run"
-    echo
-    echo '```sh'
-    printf '%s\n' "${commands[@]}"
-    echo '```'
-} >"$results"
-echo "wrote $results, $table, $out_dir/results.json and $figure" >&2
+echo "== report: $out_dir/RESULTS.md, $out_dir/results.json, $out_dir/figures/" >&2
+python3 scripts/results.py report --results "$results" --out-dir "$out_dir" --learner "$learner"

@@ -37,11 +37,18 @@ pub struct TrainArgs {
     /// total, counting earlier sessions of a resumed run.
     #[arg(long, alias = "minutes", value_name = "MINUTES")]
     pub max_minutes: Option<f64>,
+    /// Stop (checkpoint written, like Ctrl-C) once the run has received this many environment
+    /// steps in total, counting earlier sessions: a budget that means the same on any machine
+    /// (`--max-minutes` does not). With both, whichever is spent first.
+    #[arg(long, value_name = "STEPS")]
+    pub max_env_steps: Option<u64>,
     /// Run directory: config, checkpoints, metrics, actor logs. Resumed if it holds a checkpoint.
     #[arg(long, default_value = "runs/train")]
     pub run_dir: PathBuf,
-    /// Local actor processes.
-    #[arg(long, default_value_t = 2)]
+    /// Local actor processes. One by default: on 2 cores one actor of 4 environments feeds the
+    /// learner at its replay ratio, and a second takes CPU from the updates (measured: 10 updates/s
+    /// with one, 6 with two, docs/RESULTS.md). Add actors on machines with more cores.
+    #[arg(long, default_value_t = 1)]
     pub actors: usize,
     /// Environments per actor.
     #[arg(long, default_value_t = 4)]
@@ -66,6 +73,9 @@ pub async fn run(args: &TrainArgs) -> Result<()> {
         && !(m.is_finite() && m > 0.0)
     {
         anyhow::bail!("--max-minutes {m} must be a positive number of minutes");
+    }
+    if args.max_env_steps == Some(0) {
+        anyhow::bail!("--max-env-steps 0 must be a positive number of environment steps");
     }
     let resume = args.run_dir.join("checkpoint").exists() || args.run_dir.join("checkpoint.old").exists();
     let config = if resume {
@@ -95,12 +105,21 @@ pub async fn run(args: &TrainArgs) -> Result<()> {
         }
         eprintln!("time budget: {:.1} min in total ({:.1} min used so far); stops with a checkpoint when spent", b / 60.0, used / 60.0);
     }
+    if let Some(b) = args.max_env_steps {
+        let used = env_steps(&running.shared);
+        if used >= b {
+            eprintln!("the run has already received {used} env steps, the budget of --max-env-steps {b}: nothing to do");
+            running.stop().await?;
+            return Ok(());
+        }
+        eprintln!("step budget: {b} env steps in total ({used} so far); stops with a checkpoint when spent");
+    }
     let addr = running.addr.to_string();
     eprintln!(
-        "learner on {addr}, run {} in {}; starting {} actors × {} environments (logs: {}/actor-N.log)",
+        "learner on {addr}, run {} in {}; starting {} × {} environments (logs: {}/actor-N.log)",
         running.shared.run_id,
         args.run_dir.display(),
-        args.actors,
+        if args.actors == 1 { "1 actor".to_string() } else { format!("{} actors", args.actors) },
         args.envs,
         args.run_dir.display()
     );
@@ -138,19 +157,28 @@ pub async fn run(args: &TrainArgs) -> Result<()> {
     });
 
     let shared = running.shared.clone();
+    let max_env_steps = args.max_env_steps;
     let budget_spent = async move {
-        match budget_secs {
-            Some(b) => {
-                while shared.run_secs() < b {
-                    tokio::time::sleep(Duration::from_millis(500)).await;
-                }
+        if budget_secs.is_none() && max_env_steps.is_none() {
+            return std::future::pending().await;
+        }
+        loop {
+            if let Some(b) = budget_secs
+                && shared.run_secs() >= b
+            {
+                return format!("time budget of {:.1} min spent", b / 60.0);
             }
-            None => std::future::pending().await,
+            if let Some(b) = max_env_steps
+                && env_steps(&shared) >= b
+            {
+                return format!("step budget of {b} env steps spent");
+            }
+            tokio::time::sleep(Duration::from_millis(200)).await;
         }
     };
     tokio::select! {
         () = proto::shutdown::signal() => {}
-        () = budget_spent => eprintln!("time budget of {:.1} min spent", args.max_minutes.unwrap_or_default()),
+        spent = budget_spent => eprintln!("{spent}"),
         // Training died (see `learner::serve`): stop everything and exit non-zero (the stop below
         // returns the reason); the same command resumes from the last checkpoint and the replay log.
         reason = running.failed() => eprintln!("the learner stopped: {reason}"),
@@ -245,6 +273,11 @@ async fn periodic_evaluation(
             tracing::warn!("writing eval.jsonl: {e}");
         }
     }
+}
+
+/// Environment steps the run has received, over all its sessions.
+fn env_steps(shared: &learner::state::Shared) -> u64 {
+    shared.counters.lock().expect("counters lock").env_steps
 }
 
 /// The preset of `actor train` without --config or --preset: the configuration that learns fastest

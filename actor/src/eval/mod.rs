@@ -207,6 +207,10 @@ mod tests {
         // independent and each run's traffic comes from its own seed.
         assert_eq!(one.min_return.to_bits(), one.max_return.to_bits());
         assert!(two.min_return.to_bits() == one.mean_return.to_bits() || two.max_return.to_bits() == one.mean_return.to_bits());
+        // Runs are listed in seed order: run 0 of two is the lone run of one.
+        assert_eq!((one.run_returns.len(), two.run_returns.len(), two.run_completed.len()), (1, 2, 2));
+        assert_eq!(two.run_returns[0].to_bits(), one.run_returns[0].to_bits());
+        assert!((two.run_returns.iter().sum::<f64>() / 2.0 - two.mean_return).abs() < 1e-9);
         assert_eq!(run(1).mean_return.to_bits(), one.mean_return.to_bits());
     }
 

@@ -28,6 +28,10 @@ pub struct RouteResult {
     /// The paper's Table I (Hybrid-DQN, human average), for reference.
     pub paper_hybrid_dqn: Option<f32>,
     pub paper_human: Option<f32>,
+    /// Each run's return and whether it arrived, in run order (seeds S, S+1, ...): what
+    /// confidence intervals over runs are computed from.
+    pub run_returns: Vec<f64>,
+    pub run_completed: Vec<bool>,
 }
 
 /// One agent's evaluation.

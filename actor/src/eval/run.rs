@@ -179,5 +179,7 @@ fn summarise(route: &'static str, scenario: Scenario, episodes: &[Episode]) -> R
         mean_steps: mean(&|e| f64::from(e.steps)),
         paper_hybrid_dqn: paper.map(|p| p.0),
         paper_human: paper.map(|p| p.1),
+        run_returns: episodes.iter().map(|e| e.ret).collect(),
+        run_completed: episodes.iter().map(|e| e.arrived).collect(),
     }
 }
