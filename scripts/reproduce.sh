@@ -14,6 +14,9 @@
 # Usage: scripts/reproduce.sh [--seeds N] [--env-steps N] [--agents A,B] [--runs N] [--report-only]
 #                             [--runs-dir DIR] [--out-dir DIR] [--smoke] [--no-build]
 set -euo pipefail
+# The whole script is one block, read before it runs: a file edited (or pulled) during an
+# experiment of hours cannot change what the running shell reads next.
+{
 
 # name | preset | TOML added to the preset's file ("\n" between lines) | what it is
 agents=(
@@ -29,6 +32,15 @@ search=(
     "e2e-one-step|end-to-end-tuned|[agent]\nn_step = 1|the tuning with one-step targets (a collision reaches fewer states)"
     "e2e-slow-eps|end-to-end-tuned|[agent]\nepsilon_decay_steps = 300000|the tuning with exploration decayed over 300k steps, not 100k"
 )
+
+# list ENTRY...: the name and description of each table entry, one per line.
+list() {
+    local v name what
+    for v in "$@"; do
+        IFS='|' read -r name _ _ what <<<"$v"
+        printf '  %-20s %s\n' "$name" "$what"
+    done
+}
 
 usage() {
     cat <<'EOF'
@@ -51,16 +63,10 @@ scripts/reproduce.sh — the experiment of docs/RESULTS.md: agents × seeds, two
 
 Agents (each with --seeds seeds):
 EOF
-    for v in "${agents[@]}"; do
-        IFS='|' read -r name _ _ what <<<"$v"
-        printf '  %-20s %s\n' "$name" "$what"
-    done
+    list "${agents[@]}"
     echo
     echo "End-to-end search (seed 1 each; the best, by periodic evaluation, runs the other seeds):"
-    for v in "${search[@]}"; do
-        IFS='|' read -r name _ _ what <<<"$v"
-        printf '  %-20s %s\n' "$name" "$what"
-    done
+    list "${search[@]}"
     echo
     echo "Rerunning the same command resumes; finished runs (docs/results/AGENT/seedS/run.json) are skipped."
 }
@@ -229,13 +235,16 @@ if [[ "$report_only" == 0 ]]; then
             fi
         done
     fi
-    for v in "${agents[@]:1}"; do
-        IFS='|' read -r name preset extra _ <<<"$v"
-        if wanted "$name"; then
-            for seed in $(seq 1 "$seeds"); do train_and_evaluate "$name" "$preset" "$extra" "$seed"; done
-        fi
+    # The other agents seed by seed, so that an experiment stopped early has every agent.
+    for seed in $(seq 1 "$seeds"); do
+        for v in "${agents[@]:1}"; do
+            IFS='|' read -r name preset extra _ <<<"$v"
+            if wanted "$name"; then train_and_evaluate "$name" "$preset" "$extra" "$seed"; fi
+        done
     done
 fi
 
 echo "== report: $out_dir/RESULTS.md, $out_dir/results.json, $out_dir/figures/" >&2
 python3 scripts/results.py report --results "$results" --out-dir "$out_dir" --learner "$learner"
+exit
+}

@@ -55,6 +55,24 @@ def cpu_model():
     return "unknown"
 
 
+def completion_milestones(episodes, window=100, shares=(0.2, 0.4, 0.6)):
+    """When the share of arrivals among the last `window` training episodes (what `actor train`'s
+    progress line shows as "completed") first reached each share: {share: [minutes, env steps]}."""
+    episodes = sorted(episodes, key=lambda e: e["episode_index"])
+    out, arrived = {}, 0
+    for i, e in enumerate(episodes):
+        arrived += e["arrived"]
+        if i >= window:
+            arrived -= episodes[i - window]["arrived"]
+        if i + 1 < window:
+            continue
+        for share in shares:
+            key = f"{share:.1f}"
+            if key not in out and arrived >= share * window:
+                out[key] = [round(e["time_secs"] / 60, 2), e["env_steps"]]
+    return out
+
+
 def keep_run(a):
     run_dir, out = Path(a.run_dir), Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -78,6 +96,7 @@ def keep_run(a):
         "learner_step": ck.get("learner_step"),
         "episodes": ck.get("episodes"),
         "episodes_kept": len(episodes[::step]),
+        "training_completion_first_reached": completion_milestones([json.loads(l) for l in episodes if l.strip()]),
         "train_minutes": round(train[-1]["time_secs"] / 60, 2) if train else None,
         "session_secs": a.session_secs,
         "started": a.started,
@@ -237,7 +256,8 @@ def report(a):
         for seed, run in sorted(by_seed.items()):
             c = competence(run)
             entry["runs"][str(seed)] = {
-                k: run.get(k) for k in ["env_steps", "learner_step", "episodes", "train_minutes", "cpu", "load_before", "load_after", "commit"]
+                k: run.get(k) for k in ["env_steps", "learner_step", "episodes", "train_minutes", "training_completion_first_reached", "cpu",
+                                         "load_before", "load_after", "commit"]
             } | {
                 "minutes_to_competence": c and c[0],
                 "env_steps_to_competence": c and c[1],
@@ -336,8 +356,9 @@ def tables(data, names):
                      f"{100 * c['estimate']:+.0f} [{100 * c['ci95'][0]:+.0f}, {100 * c['ci95'][1]:+.0f}] | {d['seeds'][0]} vs {d['seeds'][1]} |")
     s["differences"] = "\n".join(lines)
     # Time to competence and the runs.
-    lines = [f"| agent | seed | env steps | updates | training min | min to ≥ {COMPETENT}/7 (greedy, default town) | env steps then | route types in ≥ 3/5, default / held-out | CPU, load before → after |",
-             "|---|---:|---:|---:|---:|---:|---:|---:|---|"]
+    lines = [f"| agent | seed | env steps | updates | training min | min to ≥ {COMPETENT}/7 (greedy, default town) | env steps then | "
+             "training completion ≥ 40 %, min | route types in ≥ 3/5, default / held-out | CPU, load before → after |",
+             "|---|---:|---:|---:|---:|---:|---:|---:|---:|---|"]
     for group in (data["agents"], {k: v for k, v in data["search"].items() if isinstance(v, dict) and "runs" in v}):
         for label, e in group.items():
             for seed, r in e["runs"].items():
@@ -345,6 +366,7 @@ def tables(data, names):
                 lines.append(f"| {label_of(label, names)} | {seed} | {r['env_steps']:,} | {r['learner_step']:,} | {r['train_minutes']} | "
                              f"{r['minutes_to_competence'] if r['minutes_to_competence'] is not None else 'not reached'} | "
                              f"{'–' if r['env_steps_to_competence'] is None else format(r['env_steps_to_competence'], ',')} | "
+                             f"{((r.get('training_completion_first_reached') or {}).get('0.4') or ['–'])[0]} | "
                              f"{g.get('default_town', '–')} / {g.get('held_out_town', '–')} | {r['cpu']}, {r['load_before']} → {r['load_after']} |")
     s["runs"] = "\n".join(lines)
     # Search.

@@ -96,7 +96,8 @@ class TrainedRun:
         config.write_text(TINY_TOML)
         self.sessions = []
         for extra in (["--config", str(config), "--max-minutes", "0.25"], ["--max-minutes", "0.4"]):
-            done = subprocess.run([binary("actor"), "train", "--run-dir", str(self.run_dir), *extra],
+            # Two actors (the default is one) for the logs of each actor across a resume.
+            done = subprocess.run([binary("actor"), "train", "--run-dir", str(self.run_dir), "--actors", "2", *extra],
                                   stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=300)
             assert done.returncode == 0, done.stderr
             self.sessions.append(done.stderr)

@@ -115,3 +115,11 @@ def test_the_report_fills_its_sections_and_keeps_the_hand_written_text(tmp_path)
     # A second report gives the same file: the sections are replaced, not appended.
     results.report(args)
     assert md.read_text() == text
+
+
+def test_training_completion_milestones_follow_the_progress_lines_window():
+    # 100 failures, then arrivals: the window of 100 holds 20 arrivals at episode 120, 40 at 140.
+    eps = [{"episode_index": i + 1, "arrived": i >= 100, "time_secs": 60.0 * i / 100, "env_steps": 10 * i} for i in range(150)]
+    m = results.completion_milestones(eps, shares=(0.2, 0.4, 0.6))
+    assert m == {"0.2": [1.19, 1190], "0.4": [1.39, 1390]}
+    assert results.completion_milestones(eps[:50]) == {}, "no window is full"
