@@ -277,9 +277,9 @@ def report(a):
             t["route_types_in_3_of_5_mean"] = mean([route_types_at_goal(by_seed[s], town) for s in sorted(by_seed) if town in by_seed[s]["evals"]])
             entry["towns"][town] = t
         (data["agents"] if label in MAIN_AGENTS else data["search"])[label] = entry
+    data["search"]["scores"] = {n: search_score(runs[n][1]) for n in SEARCH if 1 in runs.get(n, {})}
     if best:
         data["search"]["chosen"] = best
-        data["search"]["scores"] = {n: search_score(runs[n][1]) for n in SEARCH if 1 in runs.get(n, {})}
     data["model_based"] = {}
     for town in TOWNS:
         b = baseline(runs, town)
