@@ -129,6 +129,14 @@ def load_runs(results):
     return runs
 
 
+def config_summary(path):
+    """A run's configuration file in one line: `preset = "X"; [agent] n_step = 1`."""
+    if not path.exists():
+        return "–"
+    lines = [l.strip() for l in path.read_text().splitlines() if l.strip() and not l.startswith("#")]
+    return "`" + "; ".join(lines).replace("|", "\\|") + "`"
+
+
 def search_score(run):
     """Mean completion of the last two periodic evaluations, then their mean return."""
     last = run["periodic"][-2:]
@@ -278,6 +286,7 @@ def report(a):
             entry["towns"][town] = t
         (data["agents"] if label in MAIN_AGENTS else data["search"])[label] = entry
     data["search"]["scores"] = {n: search_score(runs[n][1]) for n in SEARCH if 1 in runs.get(n, {})}
+    data["search"]["settings"] = {n: config_summary(runs[n][1]["dir"] / "config.toml") for n in data["search"]["scores"]}
     if best:
         data["search"]["chosen"] = best
     data["model_based"] = {}
@@ -377,10 +386,12 @@ def tables(data, names):
                              f"{g.get('default_town', '–')} / {g.get('held_out_town', '–')} | {r['cpu']}, {r['load_before']} → {r['load_after']} |")
     s["runs"] = "\n".join(lines)
     # Search.
-    lines = ["| candidate | settings | score: completion, mean return (last two periodic evaluations, seed 1) |", "|---|---|---:|"]
+    settings = data["search"].get("settings", {})
+    lines = ["| candidate | settings (`results/NAME/seed1/config.toml`) | score: completion, mean return (last two periodic evaluations, seed 1) |",
+             "|---|---|---:|"]
     for n, sc in data["search"].get("scores", {}).items():
         mark = " **(chosen)**" if n == data["search"].get("chosen") else ""
-        lines.append(f"| {n}{mark} | see `results/{n}/seed1/config.toml` | {100 * sc[0]:.0f} %, {sc[1]:.1f} |")
+        lines.append(f"| {n}{mark} | {settings.get(n, '–')} | {100 * sc[0]:.0f} %, {sc[1]:.1f} |")
     s["search"] = "\n".join(lines)
     return s
 
