@@ -148,6 +148,17 @@ wanted() {
 # config_for NAME PRESET EXTRA FILE: writes the run's configuration file.
 config_for() {
     local name="$1" preset="$2" extra="$3" file="$4"
+    if [[ "$smoke" == 1 ]]; then
+        # Smoke test of the pipeline only: a tiny camera and network, a short warm-up. A TOML
+        # table may appear once, so the agent lines join the extra's [agent] table if it has one.
+        local tiny='conv_filters = 4\nhidden = 16\nmin_replay = 512'
+        if [[ "$extra" == *"[agent]"* ]]; then
+            extra="${extra/"[agent]"/"[agent]\n$tiny"}"
+        else
+            extra="${extra:+$extra\n\n}[agent]\n$tiny"
+        fi
+        extra="$extra\n\n[env.camera]\nwidth = 24\nheight = 24"
+    fi
     {
         echo "# $name: the \`$preset\` preset$([[ -n "$extra" ]] && echo " with the lines below")."
         echo "preset = \"$preset\""
@@ -155,30 +166,7 @@ config_for() {
             echo
             printf '%b\n' "$extra"
         fi
-        if [[ "$smoke" == 1 ]]; then
-            # Smoke test of the pipeline only: a tiny camera and network, a short warm-up.
-            echo
-            echo "[env.camera]"
-            echo "width = 24"
-            echo "height = 24"
-            if [[ "$extra" != *"[agent]"* ]]; then echo; echo "[agent]"; fi
-            echo "conv_filters = 4"
-            echo "hidden = 16"
-            echo "min_replay = 512"
-        fi
     } >"$file"
-    # A TOML table may appear once: the smoke lines go into the extra's [agent] when it has one.
-    if [[ "$smoke" == 1 && "$extra" == *"[agent]"* ]]; then
-        python3 - "$file" <<'EOF'
-import sys
-p = sys.argv[1]
-lines = open(p).read().splitlines()
-smoke = ["conv_filters = 4", "hidden = 16", "min_replay = 512"]
-body = [l for l in lines if l not in smoke]
-i = body.index("[agent]")
-open(p, "w").write("\n".join(body[: i + 1] + smoke + body[i + 1 :]) + "\n")
-EOF
-    fi
 }
 
 # train_and_evaluate NAME PRESET EXTRA SEED: one run, skipped when its run.json exists.

@@ -254,7 +254,6 @@ def report(a):
     names["e2e-best"] = best if best != "end-to-end" else None
     names["best"] = best
     data = {"bootstrap": {"replicates": BOOTSTRAP, "over": "seeds, then runs within each seed and route"}, "agents": {}, "search": {}}
-    seeds_of = {}
     for label in MAIN_AGENTS + [s for s in SEARCH if s != best and s not in MAIN_AGENTS]:
         name = names.get(label, label)
         if not name or name not in runs:
@@ -262,7 +261,6 @@ def report(a):
         by_seed = runs[name] if label in MAIN_AGENTS else {1: runs[name][1]} if 1 in runs[name] else {}
         if not by_seed:
             continue
-        seeds_of[label] = sorted(by_seed)
         entry = {"agent": name, "seeds": sorted(by_seed), "runs": {}, "towns": {}}
         for seed, run in sorted(by_seed.items()):
             c = competence(run)
