@@ -380,10 +380,11 @@ def tables(data, names):
         for label, e in group.items():
             for seed, r in e["runs"].items():
                 g = r["route_types_in_3_of_5"]
+                reached = r.get("training_completion_first_reached") or {}
                 lines.append(f"| {label_of(label, names)} | {seed} | {r['env_steps']:,} | {r['learner_step']:,} | {r['train_minutes']} | "
                              f"{r['minutes_to_competence'] if r['minutes_to_competence'] is not None else 'not reached'} | "
                              f"{'–' if r['env_steps_to_competence'] is None else format(r['env_steps_to_competence'], ',')} | "
-                             f"{((r.get('training_completion_first_reached') or {}).get('0.4') or ['–'])[0]} | "
+                             f"{reached['0.4'][0] if '0.4' in reached else '–'} | "
                              f"{g.get('default_town', '–')} / {g.get('held_out_town', '–')} | {r['cpu']}, {r['load_before']} → {r['load_after']} |")
     s["runs"] = "\n".join(lines)
     # Search.

@@ -43,6 +43,12 @@ def binary(name):
     return str(path)
 
 
+def actor_train(run_dir, *args, timeout=300):
+    """`actor train --run-dir RUN_DIR ARGS...` to its end, without a terminal; its output kept."""
+    return subprocess.run([binary("actor"), "train", "--run-dir", str(run_dir), *args],
+                          stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=timeout)
+
+
 def wait_for_file(path, proc, secs=60):
     """Waits until `path` exists and is non-empty; fails naming the process's log otherwise."""
     deadline = time.monotonic() + secs
@@ -97,8 +103,7 @@ class TrainedRun:
         self.sessions = []
         for extra in (["--config", str(config), "--max-minutes", "0.25"], ["--max-minutes", "0.4"]):
             # Two actors (the default is one) for the logs of each actor across a resume.
-            done = subprocess.run([binary("actor"), "train", "--run-dir", str(self.run_dir), "--actors", "2", *extra],
-                                  stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=300)
+            done = actor_train(self.run_dir, "--actors", "2", *extra)
             assert done.returncode == 0, done.stderr
             self.sessions.append(done.stderr)
 

@@ -3,14 +3,12 @@ with a checkpoint once it has received the budget's env steps, and the same comm
 finished run trains nothing (the budget counts every session)."""
 
 import re
-import subprocess
 
-from conftest import TINY_TOML, binary
+from conftest import TINY_TOML, actor_train
 
 
 def train(run_dir, *extra):
-    done = subprocess.run([binary("actor"), "train", "--run-dir", str(run_dir), "--eval-every", "0", *extra],
-                          stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=300)
+    done = actor_train(run_dir, "--eval-every", "0", *extra)
     assert done.returncode == 0, done.stderr
     return done.stderr
 
@@ -33,6 +31,5 @@ def test_a_step_budget_stops_the_run_and_holds_across_sessions(tmp_path):
 
 
 def test_a_zero_budget_is_refused_by_name(tmp_path):
-    done = subprocess.run([binary("actor"), "train", "--run-dir", str(tmp_path / "run"), "--max-env-steps", "0"],
-                          stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=60)
+    done = actor_train(tmp_path / "run", "--max-env-steps", "0", timeout=60)
     assert done.returncode != 0 and "--max-env-steps 0 must be a positive number" in done.stderr, done.stderr
