@@ -3,7 +3,8 @@
 
 use std::collections::VecDeque;
 use std::sync::Mutex;
-use std::sync::atomic::{AtomicBool, AtomicU64};
+use std::sync::atomic::{AtomicBool, AtomicI64, AtomicU64, Ordering};
+use std::time::{Duration, Instant};
 
 use agent::fastnet::Params;
 use proto::v1 as pb;
@@ -18,7 +19,14 @@ pub struct Outbox {
     pub batches: VecDeque<OutBatch>,
     pub steps: usize,
     pub dropped: u64,
+    /// Overflow is reported at most once per [`DROP_WARN_EVERY`], with a count: while the learner
+    /// is away the outbox overflows at every batch.
+    last_drop_warning: Option<Instant>,
+    dropped_unreported: u64,
 }
+
+/// How often an overflowing outbox says so.
+pub const DROP_WARN_EVERY: Duration = Duration::from_secs(60);
 
 /// What the stepping thread and the network tasks share.
 #[derive(Debug)]
@@ -33,12 +41,33 @@ pub struct Link {
     /// The stepping thread has ended and handed over its last steps.
     pub stepper_done: AtomicBool,
     pub connected: AtomicBool,
+    /// Environment steps this process has taken.
     pub env_steps: AtomicU64,
+    /// The run's environment steps minus this process's, as of the learner's last report
+    /// (`Register`, every weights poll): `env_steps` plus it is the run's step that the ε schedule
+    /// follows, so that a restarted actor or a resumed run does not explore from scratch.
+    pub run_steps_offset: AtomicI64,
     /// The id of the current registration (the weights poll names it).
     pub actor_id: Mutex<String>,
     /// Set by the weights poll when the learner answers again after failing to: a restarted
     /// learner is back, so a wait before registering again can end now.
     pub learner_back: AtomicBool,
+}
+
+impl Link {
+    /// Records the learner's count of the run's environment steps (0 from a learner that does not
+    /// report it, which leaves the schedule on this process's own steps).
+    pub fn note_run_env_steps(&self, run_env_steps: u64) {
+        if run_env_steps > 0 {
+            let own = self.env_steps.load(Ordering::SeqCst);
+            self.run_steps_offset.store(run_env_steps as i64 - own as i64, Ordering::SeqCst);
+        }
+    }
+
+    /// The run's environment step that this process's `own_steps` correspond to.
+    pub fn run_env_steps(&self, own_steps: u64) -> u64 {
+        (own_steps as i64 + self.run_steps_offset.load(Ordering::SeqCst)).max(0) as u64
+    }
 }
 
 impl Outbox {
@@ -51,7 +80,38 @@ impl Outbox {
             let (s, _, _, _) = self.batches.remove(1).expect("more than two batches");
             self.steps -= s.len();
             self.dropped += s.len() as u64;
-            tracing::warn!(dropped = s.len(), "outbox full: oldest steps dropped");
+            self.dropped_unreported += s.len() as u64;
         }
+        if self.dropped_unreported > 0 && self.last_drop_warning.is_none_or(|t| t.elapsed() >= DROP_WARN_EVERY) {
+            let since = self.last_drop_warning.map_or_else(String::new, |t| format!(" in the last {:.0} s", t.elapsed().as_secs_f64()));
+            tracing::warn!(
+                dropped = self.dropped_unreported,
+                dropped_total = self.dropped,
+                "outbox full (the learner is not taking steps): {} oldest steps dropped{since} (said at most once a minute)",
+                self.dropped_unreported
+            );
+            self.dropped_unreported = 0;
+            self.last_drop_warning = Some(Instant::now());
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn overflow_drops_the_oldest_but_the_front_and_counts_them() {
+        let batch = |n: usize| -> OutBatch { (vec![pb::Step::default(); n], Vec::new(), 0.1, 1) };
+        let mut ob = Outbox::default();
+        for _ in 0..10 {
+            ob.push_bounded(batch(4), 8);
+        }
+        assert_eq!(ob.batches.len(), 2);
+        assert_eq!(ob.steps, 8);
+        assert_eq!(ob.dropped, 32);
+        // Reported once (the first overflow), the rest counted for the next report.
+        assert!(ob.last_drop_warning.is_some());
+        assert_eq!(ob.dropped_unreported, 28);
     }
 }

@@ -57,6 +57,11 @@ struct Cli {
     /// replay log position): what the learner promised to keep, for audits and the chaos test.
     #[arg(long, hide = true)]
     ack_log: Option<std::path::PathBuf>,
+    /// Exit at once when standard input reaches its end: `actor train` (and tests) give their
+    /// actors a pipe whose other end closes when the parent dies, even by SIGKILL, so that no
+    /// actor outlives the learner it was started for.
+    #[arg(long, hide = true)]
+    exit_with_stdin: bool,
 }
 
 #[derive(Debug, Subcommand)]
@@ -110,6 +115,7 @@ fn main() -> Result<()> {
                 buffer_steps: cli.buffer_steps.max(1),
                 seed: cli.seed,
                 ack_log: cli.ack_log,
+                exit_with_stdin: cli.exit_with_stdin,
             };
             tokio::runtime::Builder::new_multi_thread().worker_threads(2).enable_all().build()?.block_on(run::run(opts))
         }

@@ -13,7 +13,7 @@
 //! from 0.5 s to 30 s (±25 %) until a batch is acknowledged again: never a tight reconnect loop.
 
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicI64, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
@@ -48,6 +48,8 @@ pub struct ActorOptions {
     /// Appends a JSON line per acknowledged batch to this file (for audits such as the chaos
     /// test: which batches the learner promised to keep, and where in its replay log).
     pub ack_log: Option<PathBuf>,
+    /// Exit when standard input closes (the parent that started this actor died).
+    pub exit_with_stdin: bool,
 }
 
 /// Registers, retrying with exponential backoff (0.5 s doubling to 30 s, ±25 % jitter) until it
@@ -123,10 +125,14 @@ pub async fn run(opts: ActorOptions) -> Result<()> {
         stepper_done: AtomicBool::new(false),
         connected: AtomicBool::new(false),
         env_steps: AtomicU64::new(0),
+        run_steps_offset: AtomicI64::new(0),
         actor_id: Mutex::new(String::new()),
         learner_back: AtomicBool::new(false),
     });
     let mut ack_log = AckLog::open(opts.ack_log.as_deref())?;
+    if opts.exit_with_stdin {
+        exit_when_stdin_closes()?;
+    }
     {
         let link = link.clone();
         tokio::spawn(async move {
@@ -137,7 +143,16 @@ pub async fn run(opts: ActorOptions) -> Result<()> {
     }
     let mut rng = ChaCha8Rng::seed_from_u64(opts.seed ^ std::process::id() as u64);
     let Some((client, reg)) = register(&opts, &token, &link, opts.envs, &mut rng).await else { return Ok(()) };
-    tracing::info!(actor_id = %reg.actor_id, index = reg.actor_index, run_id = %reg.run_id, envs = opts.envs, "registered");
+    tracing::info!(
+        actor_id = %reg.actor_id,
+        index = reg.actor_index,
+        run_id = %reg.run_id,
+        envs = opts.envs,
+        run_env_steps = reg.run_env_steps,
+        episode_stream = reg.episode_stream,
+        "registered"
+    );
+    link.note_run_env_steps(reg.run_env_steps);
     link.actor_id.lock().expect("actor id lock").clone_from(&reg.actor_id);
     let env_cfg: EnvConfig = toml::from_str(&reg.env_config_toml).context("the learner's [env] configuration")?;
     let agent_cfg: AgentConfig = toml::from_str(&reg.agent_config_toml).context("the learner's [agent] configuration")?;
@@ -147,9 +162,10 @@ pub async fn run(opts: ActorOptions) -> Result<()> {
     let stepper = {
         let link = link.clone();
         let cfg = run_cfg.clone();
-        let (envs, seed, index, batch_steps, buffer_steps) = (opts.envs, opts.seed, reg.actor_index, opts.batch_steps, opts.buffer_steps);
+        let (envs, seed, index, stream) = (opts.envs, opts.seed, reg.actor_index, reg.episode_stream);
+        let (batch_steps, buffer_steps) = (opts.batch_steps, opts.buffer_steps);
         std::thread::Builder::new().name("step".into()).spawn(move || {
-            let r = step_loop(&cfg, &link, envs, seed, index, batch_steps, buffer_steps);
+            let r = step_loop(&cfg, &link, envs, seed, index, stream, batch_steps, buffer_steps);
             link.stepper_done.store(true, Ordering::SeqCst);
             r
         })?
@@ -184,6 +200,21 @@ pub async fn run(opts: ActorOptions) -> Result<()> {
         );
     }
     tracing::info!(unsent_steps = ob.steps, dropped_steps = ob.dropped, env_steps = link.env_steps.load(Ordering::SeqCst), "actor stopped");
+    Ok(())
+}
+
+/// Watches standard input on a thread of its own and ends the process when it reaches its end:
+/// the parent holding the pipe's other end has gone (its learner with it), so there is nothing to
+/// flush to and no one to stop this actor otherwise.
+fn exit_when_stdin_closes() -> Result<()> {
+    std::thread::Builder::new().name("parent-watch".into()).spawn(|| {
+        use std::io::Read;
+        let mut sink = [0u8; 64];
+        let mut stdin = std::io::stdin().lock();
+        while matches!(stdin.read(&mut sink), Ok(n) if n > 0) {}
+        tracing::warn!("standard input closed: the process that started this actor is gone; exiting");
+        std::process::exit(1);
+    })?;
     Ok(())
 }
 
@@ -435,7 +466,8 @@ async fn reconnect(
     rng: &mut ChaCha8Rng,
 ) -> Option<(Client, pb::RegisterResponse)> {
     let r = register(opts, token, link, opts.envs, rng).await?;
-    tracing::info!(actor_id = %r.1.actor_id, "reconnected");
+    tracing::info!(actor_id = %r.1.actor_id, run_env_steps = r.1.run_env_steps, "reconnected");
+    link.note_run_env_steps(r.1.run_env_steps);
     link.actor_id.lock().expect("actor id lock").clone_from(&r.1.actor_id);
     link.connected.store(true, Ordering::SeqCst);
     Some(r)
@@ -456,6 +488,7 @@ async fn weights_loop(opts: ActorOptions, token: Option<String>, link: Arc<Link>
                     link.learner_back.store(true, Ordering::SeqCst);
                 }
                 let w = w.into_inner();
+                link.note_run_env_steps(w.run_env_steps);
                 // Any other version is newer: versions only grow within a run, also across the
                 // learner's restarts, and a learner of another run starts its own.
                 if !w.safetensors.is_empty() && w.version != have {

@@ -17,7 +17,17 @@ use sim_core::town::Town;
 use crate::link::Link;
 
 /// The environments and the policy: runs until stop.
-pub fn step_loop(cfg: &RunConfig, link: &Link, n: usize, seed: u64, index: u32, batch_steps: usize, buffer_steps: usize) -> Result<()> {
+#[allow(clippy::too_many_arguments)]
+pub fn step_loop(
+    cfg: &RunConfig,
+    link: &Link,
+    n: usize,
+    seed: u64,
+    index: u32,
+    episode_stream: u64,
+    batch_steps: usize,
+    buffer_steps: usize,
+) -> Result<()> {
     let town = Town::default_town();
     anyhow::ensure!(cfg.env.camera.is_some(), "the run has no camera configured");
     let shape = cfg.net_shape();
@@ -25,7 +35,7 @@ pub fn step_loop(cfg: &RunConfig, link: &Link, n: usize, seed: u64, index: u32, 
     // and the learner.
     let mut net = Inference::new(shape, cfg.agent.seed, 1);
     let actions = cfg.agent.action_set.actions();
-    let mut rng = ChaCha8Rng::seed_from_u64(seed ^ (u64::from(index) << 32));
+    let mut rng = episode_rng(seed, index, episode_stream);
     let mut envs: Vec<Env> = (0..n).map(|_| Env::new(town.clone(), cfg.env.clone())).collect::<Result<_, _>>()?;
     let mut episode = vec![0u64; n];
     let mut t = vec![0u32; n];
@@ -55,7 +65,7 @@ pub fn step_loop(cfg: &RunConfig, link: &Link, n: usize, seed: u64, index: u32, 
         // One batched forward pass for all environments.
         let scalars: Vec<f32> = envs.iter().flat_map(|e| agent::features::scalar_features(cfg, &agent::features::env_scalars(e))).collect();
         let greedy = net.greedy(envs.iter().map(|e| e.image().data.as_slice()), &scalars);
-        let epsilon = cfg.epsilon(index, total_steps);
+        let epsilon = cfg.epsilon(index, link.run_env_steps(total_steps));
         for (k, env) in envs.iter_mut().enumerate() {
             let a = if rng.random::<f32>() < epsilon { rng.random_range(0..actions.len()) as u32 } else { greedy[k] };
             let r = env.step(actions[a as usize])?;
@@ -107,7 +117,37 @@ pub fn step_loop(cfg: &RunConfig, link: &Link, n: usize, seed: u64, index: u32, 
     if !pending.is_empty() {
         let mut ob = link.outbox.lock().expect("outbox lock");
         ob.steps += pending.len();
-        ob.batches.push_back((pending, summaries, cfg.epsilon(index, total_steps), link.acting_version.load(Ordering::SeqCst)));
+        ob.batches.push_back((
+            pending,
+            summaries,
+            cfg.epsilon(index, link.run_env_steps(total_steps)),
+            link.acting_version.load(Ordering::SeqCst),
+        ));
     }
     Ok(())
+}
+
+/// The random stream of an actor's episode seeds and exploration: from the run's seed, the
+/// actor's index and the learner's `episode_stream` for this registration. Stream 0 (a fresh run's
+/// first life of the actor) is the stream actors have always drawn from; a restarted actor gets
+/// another one, so that it does not replay its first life's routes and traffic.
+pub fn episode_rng(seed: u64, index: u32, episode_stream: u64) -> ChaCha8Rng {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed ^ (u64::from(index) << 32));
+    rng.set_stream(episode_stream);
+    rng
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn stream_zero_is_the_original_stream_and_others_differ() {
+        let draw = |mut r: ChaCha8Rng| (0..4).map(|_| r.next_u64()).collect::<Vec<_>>();
+        let original = draw(ChaCha8Rng::seed_from_u64(7 ^ (3u64 << 32)));
+        assert_eq!(draw(episode_rng(7, 3, 0)), original, "a fresh run's episodes are unchanged");
+        let restarted = draw(episode_rng(7, 3, 1 + (5000 << 16 | 2)));
+        assert_ne!(restarted, original);
+        assert_ne!(restarted, draw(episode_rng(7, 3, 1 + (5000 << 16 | 3))));
+    }
 }

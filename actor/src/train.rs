@@ -138,9 +138,12 @@ pub async fn run(args: &TrainArgs) -> Result<()> {
     for k in 0..args.actors {
         let log = open_actor_log(&args.run_dir.join(format!("actor-{k}.log")), &session.replace("{k}", &k.to_string()))?;
         let seed = args.seed.map_or(k as u64, |s| s.wrapping_mul(64).wrapping_add(k as u64));
+        // Its standard input is a pipe this process holds: when this process dies, even by
+        // SIGKILL, the pipe closes and the actor exits (`--exit-with-stdin`).
         let child = Command::new(&exe)
             .args(["--learner", &addr, "--envs", &args.envs.to_string(), "--id", &format!("local-{k}"), "--seed", &seed.to_string()])
-            .stdin(Stdio::null())
+            .arg("--exit-with-stdin")
+            .stdin(Stdio::piped())
             .stdout(Stdio::null())
             .stderr(log)
             .spawn()

@@ -13,6 +13,7 @@ pub mod progress;
 pub mod prometheus;
 pub mod records;
 pub mod replay;
+pub mod run_lock;
 pub mod serve;
 pub mod service;
 pub mod state;

@@ -67,7 +67,28 @@ pub fn line(session_secs: f64, s: &pb::StatusResponse) -> String {
         s.weights_version,
         s.replay_size,
         connected
-    )
+    ) + &stall_note(session_secs, s, connected)
+}
+
+/// A session younger than this is starting (actors connecting, the replay filling), not stalled.
+const STARTING_SECS: f64 = 10.0;
+
+/// Why training is not moving, where the status says (empty while it moves): what a user must
+/// see on the one line they watch, not only in a log.
+fn stall_note(session_secs: f64, s: &pb::StatusResponse, connected: usize) -> String {
+    if !s.training_error.is_empty() {
+        return format!("  STOPPED: {}", s.training_error);
+    }
+    if s.env_steps_per_sec >= 1.0 || session_secs < STARTING_SECS {
+        return String::new();
+    }
+    if !s.recent_refusal.is_empty() {
+        format!("  stalled: batches refused: {}", s.recent_refusal)
+    } else if connected == 0 {
+        "  stalled: no actor connected".to_owned()
+    } else {
+        String::new()
+    }
 }
 
 /// Where progress lines go: an in-place line on a terminal, plain lines elsewhere.
@@ -165,5 +186,22 @@ mod tests {
             "[    42s] env steps 1234 (56/s)  episodes 12  mean return -3.25  completed 25%  updates 78 (2.50/s)  loss -  weights v9  replay 1000  actors 1"
         );
         assert!(!l.contains('\n') && !l.contains('\u{1b}'));
+    }
+
+    #[test]
+    fn a_stalled_run_says_why_on_the_line() {
+        let disk = "the learner could not make the batch durable: writing the replay log: No space left on device";
+        let mut s = pb::StatusResponse { recent_refusal: disk.into(), ..Default::default() };
+        assert!(line(20.0, &s).ends_with(&format!("actors 0  stalled: batches refused: {disk}")), "{}", line(20.0, &s));
+        s.recent_refusal.clear();
+        assert!(line(20.0, &s).ends_with("actors 0  stalled: no actor connected"));
+        // Starting: actors are still connecting.
+        assert!(line(2.0, &s).ends_with("actors 0"));
+        // Moving: nothing to say, whatever happened before.
+        s.env_steps_per_sec = 100.0;
+        s.recent_refusal = disk.into();
+        assert!(line(20.0, &s).ends_with("actors 0"));
+        s.training_error = "training failed: boom".into();
+        assert!(line(20.0, &s).ends_with("actors 0  STOPPED: training failed: boom"));
     }
 }

@@ -64,7 +64,7 @@ impl Collector for LearnerCollector {
             ("learner_env_steps_per_second", "Environment steps per second over the last 10 s.", s.env_steps_per_sec),
             ("learner_loss", "Recent mean Huber loss (NaN before training).", s.loss.unwrap_or(f64::NAN)),
             ("learner_mean_q", "Recent mean Q of the actions taken (NaN before training).", s.mean_q.unwrap_or(f64::NAN)),
-            ("learner_epsilon", "Exploration rate of the schedule.", s.epsilon),
+            ("learner_epsilon", "Exploration rate of the schedule at the run's environment steps.", s.epsilon),
             ("learner_episode_return_mean", "Mean return of the recent episodes (service.stats_window).", episodes.mean_return),
             ("learner_episode_completion_rate", "Share of the recent episodes that reached their goal.", episodes.completion_rate),
             ("learner_episode_collision_rate", "Share of the recent episodes that ended in a collision.", episodes.collision_rate),
@@ -86,6 +86,18 @@ impl Collector for LearnerCollector {
         for a in &connected {
             let labels = [("actor", a.name.as_str())];
             ConstGauge::new(a.version_lag as i64).encode(family.encode_family(&labels)?)?;
+        }
+        // Per actor: the exploration rate it acts with (its last acknowledged batch).
+        let m = ConstGauge::new(0f64);
+        let mut family = enc.encode_descriptor(
+            "learner_actor_epsilon",
+            "Exploration rate of an actor's last batch (connected actors).",
+            None,
+            m.metric_type(),
+        )?;
+        for a in &connected {
+            let labels = [("actor", a.name.as_str())];
+            ConstGauge::new(f64::from(a.epsilon)).encode(family.encode_family(&labels)?)?;
         }
         Ok(())
     }

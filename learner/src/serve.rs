@@ -25,6 +25,7 @@ use crate::metrics_log::MetricsLog;
 use crate::progress::RateMeter;
 use crate::prometheus::serve_prometheus;
 use crate::replay::{Replay, ReplayConfig};
+use crate::run_lock::RunLock;
 use crate::service::LearnerService;
 use crate::state::{PublishedWeights, Shared, TrainStats};
 use crate::versions::VersionLease;
@@ -95,6 +96,8 @@ pub struct Running {
     stop_server: tokio::sync::oneshot::Sender<()>,
     server: tokio::task::JoinHandle<Result<(), tonic::transport::Error>>,
     trainer: std::thread::JoinHandle<Result<Dqn>>,
+    /// This process owns the run directory until the learner is dropped.
+    _lock: RunLock,
 }
 
 impl Running {
@@ -120,7 +123,7 @@ impl Running {
                 server.abort();
             }
         }
-        let trainer = self.trainer;
+        let (trainer, _lock) = (self.trainer, self._lock);
         let dqn =
             tokio::task::spawn_blocking(move || trainer.join()).await?.map_err(|_| anyhow::anyhow!("the training thread panicked"))??;
         if let Some(reason) = self.shared.failure() {
@@ -150,6 +153,8 @@ async fn start_with(opts: ServeOptions, train: Trainer) -> Result<Running> {
     }
     let run_dir = PathBuf::from(&cfg.service.run_dir);
     std::fs::create_dir_all(&run_dir).with_context(|| format!("creating run directory {}", run_dir.display()))?;
+    // Before anything is read: a second process on this run would corrupt it.
+    let lock = RunLock::acquire(&run_dir)?;
     if opts.resume {
         let text = checkpoint_config_text(&run_dir)?;
         let from_ckpt = RunConfig::from_toml(&text, &format!("{}/checkpoint/config.toml", run_dir.display()))?;
@@ -224,6 +229,7 @@ async fn start_with(opts: ServeOptions, train: Trainer) -> Result<Running> {
         data_arrived: (Mutex::new(()), Condvar::new()),
         shutdown: Default::default(),
         elapsed_before,
+        resumed: opts.resume,
         log,
         versions: Mutex::new(versions),
         registrations: Default::default(),
@@ -231,6 +237,7 @@ async fn start_with(opts: ServeOptions, train: Trainer) -> Result<Running> {
         warned_peers: Default::default(),
         failure: tokio::sync::watch::Sender::new(None),
         checkpoint_error: Mutex::new(None),
+        last_refusal: Mutex::new(None),
     });
 
     // Training thread.
@@ -306,7 +313,7 @@ async fn start_with(opts: ServeOptions, train: Trainer) -> Result<Running> {
     let server = tokio::spawn(router.serve_with_incoming_shutdown(incoming, async move {
         let _ = stopped.await;
     }));
-    Ok(Running { addr: bound, run_dir, shared, stop_server, server, trainer })
+    Ok(Running { addr: bound, run_dir, shared, stop_server, server, trainer, _lock: lock })
 }
 
 /// Runs training, turning its end other than by a requested stop (an error or a panic) into a

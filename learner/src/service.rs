@@ -76,7 +76,9 @@ impl Learner for LearnerService {
                 None
             }
         };
+        let first_life = ended.is_none() && !s.resumed;
         drop(actors);
+        let run_env_steps = s.counters.lock().expect("counters lock").env_steps;
         if let Some(old) = ended {
             // The old registration's half-built transitions will never be completed.
             s.replay.lock().expect("replay lock").end_streams_of(&old);
@@ -93,6 +95,8 @@ impl Learner for LearnerService {
             weights_version: s.current_weights().version,
             max_message_bytes: s.cfg.service.max_message_bytes as u64,
             max_batch_steps: MAX_STEPS_PER_BATCH as u32,
+            run_env_steps,
+            episode_stream: episode_stream(first_life, run_env_steps, n),
         }))
     }
 
@@ -167,12 +171,21 @@ impl Learner for LearnerService {
         // Any other version than the current one is stale: versions of this run only grow (also
         // across restarts, see `versions`), and one from another run is no use either.
         let bytes = if r.have_version != w.version { w.bytes.as_ref().clone() } else { Vec::new() };
-        Ok(Response::new(pb::Weights { version: w.version, safetensors: bytes }))
+        let run_env_steps = self.shared.counters.lock().expect("counters lock").env_steps;
+        Ok(Response::new(pb::Weights { version: w.version, safetensors: bytes, run_env_steps }))
     }
 
     async fn status(&self, _req: Request<pb::StatusRequest>) -> Result<Response<pb::StatusResponse>, Status> {
         Ok(Response::new(status(&self.shared)))
     }
+}
+
+/// The episode-seed stream of a registration: 0 for the first life of a name in a fresh run (a
+/// fresh run with a seed is bit-identical), else one that no earlier registration of this run
+/// had: the run's env steps so far (they only grow, across resumes too) with this process's
+/// registration count, so that a restarted actor never replays its first life's episodes.
+fn episode_stream(first_life: bool, run_env_steps: u64, registration: u64) -> u64 {
+    if first_life { 0 } else { 1 + (run_env_steps << 16 | (registration & 0xffff)) }
 }
 
 /// An experience stream, counted in its actor's `open_streams` while it lasts.
@@ -326,6 +339,7 @@ fn store(shared: &Shared, b: pb::ExperienceBatch) -> Result<Stored, Status> {
             Reject::Invalid(m) => Status::invalid_argument(m),
             Reject::TooLarge(m) => Status::resource_exhausted(m),
         };
+        shared.note_refusal(status.message());
         if first {
             tracing::warn!(actor_id = %b.actor_id, %status, "batch refused (further refusals of this kind from this actor: DEBUG)");
         } else {
@@ -437,7 +451,9 @@ fn refuse_unlogged(shared: &Shared, e: &wal::LogError) -> Status {
     } else {
         tracing::error!("{e}: batch not acknowledged");
     }
-    Status::unavailable(format!("the learner could not make the batch durable: {e}"))
+    let status = Status::unavailable(format!("the learner could not make the batch durable: {e}"));
+    shared.note_refusal(status.message());
+    status
 }
 
 /// The status of the run.
@@ -472,6 +488,7 @@ pub fn status(shared: &Shared) -> pb::StatusResponse {
             open_streams: a.open_streams,
             registrations: a.registrations,
             dropped_steps: a.dropped_steps,
+            epsilon: a.epsilon,
         })
         .collect();
     let window = shared.recent_episodes.lock().expect("episodes lock");
@@ -516,5 +533,6 @@ pub fn status(shared: &Shared) -> pb::StatusResponse {
         checkpoint_error: shared.checkpoint_error.lock().expect("checkpoint error lock").clone().unwrap_or_default(),
         streams_refused_too_large: shared.refused.too_large.load(Ordering::Relaxed),
         streams_refused_undecodable: shared.refused.undecodable.load(Ordering::Relaxed),
+        recent_refusal: shared.recent_refusal().unwrap_or_default(),
     }
 }

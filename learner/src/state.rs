@@ -129,6 +129,9 @@ pub struct Shared {
     pub shutdown: AtomicBool,
     /// Seconds of earlier sessions of this run (from the checkpoint), for `time_secs` in metrics.
     pub elapsed_before: f64,
+    /// This process continues an earlier session of the run (`--resume`): its actors are not in
+    /// their first life.
+    pub resumed: bool,
     /// The replay log (`service.durability = "ack"`), or none.
     pub log: Option<ReplayLog>,
     /// Hands out weights versions that never go backwards, across restarts too.
@@ -142,7 +145,12 @@ pub struct Shared {
     pub failure: tokio::sync::watch::Sender<Option<Arc<str>>>,
     /// The last failed checkpoint write, while checkpoints are retried.
     pub checkpoint_error: Mutex<Option<String>>,
+    /// The most recent refusal of a batch and when it happened (Status's `recent_refusal`).
+    pub last_refusal: Mutex<Option<(Instant, String)>>,
 }
+
+/// How long a refusal counts as recent in Status.
+pub const RECENT_REFUSAL: Duration = Duration::from_secs(30);
 
 impl Shared {
     /// Seconds since the run began, across resumes.
@@ -179,6 +187,17 @@ impl Shared {
         if first {
             tracing::error!(%reason, "the learner cannot go on: reporting NOT_SERVING and stopping");
         }
+    }
+
+    /// Records a refusal of a batch, for Status and the progress line.
+    pub fn note_refusal(&self, reason: &str) {
+        *self.last_refusal.lock().expect("refusal lock") = Some((Instant::now(), reason.to_owned()));
+    }
+
+    /// The most recent refusal, if within [`RECENT_REFUSAL`].
+    #[must_use]
+    pub fn recent_refusal(&self) -> Option<String> {
+        self.last_refusal.lock().expect("refusal lock").as_ref().filter(|(t, _)| t.elapsed() < RECENT_REFUSAL).map(|(_, r)| r.clone())
     }
 
     /// The newest weights.

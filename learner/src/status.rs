@@ -65,6 +65,7 @@ pub fn to_json(s: &pb::StatusResponse) -> serde_json::Value {
             "streams_refused_undecodable": s.streams_refused_undecodable,
             "training_error": s.training_error,
             "checkpoint_error": s.checkpoint_error,
+            "recent_refusal": s.recent_refusal,
         },
         "actors": s.actors.iter().map(|a| json!({
             "actor_id": a.actor_id,
@@ -79,6 +80,7 @@ pub fn to_json(s: &pb::StatusResponse) -> serde_json::Value {
             "open_streams": a.open_streams,
             "registrations": a.registrations,
             "dropped_steps": a.dropped_steps,
+            "epsilon": a.epsilon,
         })).collect::<Vec<_>>(),
     })
 }
@@ -91,7 +93,7 @@ pub fn print_table(s: &pb::StatusResponse) {
         "learner step {}   weights version {}   updates/s {:.2}   env steps/s {:.0}",
         s.learner_step, s.weights_version, s.updates_per_sec, s.env_steps_per_sec
     );
-    println!("loss {:.4}   mean Q {:.3}   epsilon {:.3}", s.loss, s.mean_q, s.epsilon);
+    println!("loss {:.4}   mean Q {:.3}   epsilon schedule at the run's step {:.3}", s.loss, s.mean_q, s.epsilon);
     println!(
         "replay {}/{} transitions, {:.1} MiB   received {}   stored {}   rejected {} ({} batches)",
         s.replay_size,
@@ -115,6 +117,9 @@ pub fn print_table(s: &pb::StatusResponse) {
     if !s.training_error.is_empty() {
         println!("TRAINING STOPPED: {}", s.training_error);
     }
+    if !s.recent_refusal.is_empty() {
+        println!("batches refused (last 30 s): {}", s.recent_refusal);
+    }
     if !s.checkpoint_error.is_empty() {
         println!("checkpoint failing (retried): {}", s.checkpoint_error);
     }
@@ -127,13 +132,13 @@ pub fn print_table(s: &pb::StatusResponse) {
         100.0 * ep.collision_rate
     );
     println!(
-        "{:<34} {:<12} {:>5} {:>9} {:>10} {:>7} {:>12} {:>8}",
-        "actor", "name", "index", "connected", "last seen", "lag", "transitions", "rejected"
+        "{:<34} {:<12} {:>5} {:>9} {:>10} {:>7} {:>12} {:>8} {:>7}",
+        "actor", "name", "index", "connected", "last seen", "lag", "transitions", "rejected", "epsilon"
     );
     for a in &s.actors {
         println!(
-            "{:<34} {:<12} {:>5} {:>9} {:>9.1}s {:>7} {:>12} {:>8}",
-            a.actor_id, a.name, a.actor_index, a.connected, a.last_seen_secs, a.version_lag, a.transitions, a.rejected_batches
+            "{:<34} {:<12} {:>5} {:>9} {:>9.1}s {:>7} {:>12} {:>8} {:>7.3}",
+            a.actor_id, a.name, a.actor_index, a.connected, a.last_seen_secs, a.version_lag, a.transitions, a.rejected_batches, a.epsilon
         );
     }
 }

@@ -6,7 +6,8 @@ import re
 
 PROGRESS = re.compile(
     r"^\[ *\d+s\] env steps \d+ \(\d+/s\)  episodes \d+  mean return -?[\d.]+  completed \d+%  "
-    r"updates \d+ \([\d.]+/s\)  loss (-|[\d.]+)  weights v\d+  replay \d+  actors \d+$")
+    r"updates \d+ \([\d.]+/s\)  loss (-|[\d.]+)  weights v\d+  replay \d+  actors \d+"
+    r"(  stalled: .+|  STOPPED: .+)?$")
 
 
 def test_one_plain_progress_format(trained_run):
