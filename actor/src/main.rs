@@ -54,7 +54,7 @@ struct Cli {
     #[arg(long, default_value_t = 0)]
     seed: u64,
     /// Append a JSON line per acknowledged batch to this file (name, actor id, seq, steps,
-    /// replay log position): what the learner promised to keep, for audits and the chaos test.
+    /// replay log position, ε): what the learner promised to keep, for audits and the chaos test.
     #[arg(long, hide = true)]
     ack_log: Option<std::path::PathBuf>,
     /// Exit at once when standard input reaches its end: `actor train` (and tests) give their

@@ -46,7 +46,8 @@ pub struct ActorOptions {
     pub buffer_steps: usize,
     pub seed: u64,
     /// Appends a JSON line per acknowledged batch to this file (for audits such as the chaos
-    /// test: which batches the learner promised to keep, and where in its replay log).
+    /// test: which batches the learner promised to keep, where in its replay log, and the ε they
+    /// were taken with).
     pub ack_log: Option<PathBuf>,
     /// Exit when standard input closes (the parent that started this actor died).
     pub exit_with_stdin: bool,
@@ -247,6 +248,7 @@ impl AckLog {
             "steps": batch.steps.len(),
             "stored": ack.stored,
             "log_position": ack.log_position,
+            "epsilon": batch.epsilon,
         });
         if let Err(e) = f.write_all(format!("{line}\n").as_bytes()) {
             tracing::warn!("writing the ack log: {e}");

@@ -53,7 +53,12 @@ pub fn step_loop(
     };
     let episode_seed = |rng: &mut ChaCha8Rng| rng.next_u64();
     for (k, env) in envs.iter_mut().enumerate() {
-        env.reset(episode_seed(&mut rng), Scenario::Random)?;
+        let seed = episode_seed(&mut rng);
+        if k == 0 {
+            // Said once, so that a restart can be seen to continue with new episodes.
+            tracing::info!(episode_stream, first_episode_seed = seed, "environments starting");
+        }
+        env.reset(seed, Scenario::Random)?;
         pending.push(pb::Step { env: k as u32, episode: 0, t: 0, obs: Some(wire(env.observation())), ..pb::Step::default() });
     }
     let mut total_steps = 0u64;

@@ -64,7 +64,7 @@ impl Collector for LearnerCollector {
             ("learner_env_steps_per_second", "Environment steps per second over the last 10 s.", s.env_steps_per_sec),
             ("learner_loss", "Recent mean Huber loss (NaN before training).", s.loss.unwrap_or(f64::NAN)),
             ("learner_mean_q", "Recent mean Q of the actions taken (NaN before training).", s.mean_q.unwrap_or(f64::NAN)),
-            ("learner_epsilon", "Exploration rate of the schedule at the run's environment steps.", s.epsilon),
+            ("learner_epsilon", "Exploration rate of the schedule at the run's environment steps.", status.epsilon),
             ("learner_episode_return_mean", "Mean return of the recent episodes (service.stats_window).", episodes.mean_return),
             ("learner_episode_completion_rate", "Share of the recent episodes that reached their goal.", episodes.completion_rate),
             ("learner_episode_collision_rate", "Share of the recent episodes that ended in a collision.", episodes.collision_rate),

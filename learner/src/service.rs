@@ -518,7 +518,8 @@ pub fn status(shared: &Shared) -> pb::StatusResponse {
         episodes: Some(episodes),
         loss: st.loss.unwrap_or(f64::NAN),
         mean_q: st.mean_q.unwrap_or(f64::NAN),
-        epsilon: st.epsilon,
+        // The schedule at the run's step now (not the last second's report).
+        epsilon: f64::from(shared.cfg.epsilon(0, c.env_steps)),
         variant: match shared.cfg.env.variant {
             sim_core::config::Variant::Hybrid => "hybrid".into(),
             sim_core::config::Variant::EndToEnd => "end_to_end".into(),

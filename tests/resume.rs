@@ -1,0 +1,184 @@
+//! Resume means resume: stopping and starting the learner, one actor or the whole `actor train`
+//! changes nothing about what the run does next. ε follows the run's environment steps (not the
+//! actor process's), a restarted actor continues with new episodes, one process owns a run
+//! directory, and no actor outlives the `actor train` that started it.
+
+mod support;
+
+use std::path::Path;
+use std::process::Command;
+use std::time::{Duration, Instant};
+
+use agent::config::RunConfig;
+use learner::serve::{Running, ServeOptions, start};
+use support::{Process, ack_lines, actor, alive, children_of, free_port, spawn_actor, status, wait_for, wait_for_file};
+
+/// ε decays over this many of the run's env steps, to `EPSILON_END`.
+const DECAY_STEPS: u64 = 300;
+const EPSILON_END: f32 = 0.05;
+
+fn config(run_dir: &Path, listen: &str) -> RunConfig {
+    let mut cfg = RunConfig::tiny(run_dir);
+    cfg.env.traffic.vehicles = 2;
+    cfg.agent.epsilon_decay_steps = DECAY_STEPS;
+    cfg.agent.epsilon_end = EPSILON_END;
+    cfg.agent.replay_capacity = 5000;
+    cfg.agent.replay_ratio = 0.25;
+    cfg.service.listen = listen.into();
+    cfg
+}
+
+fn write_config(dir: &Path, listen: &str) -> std::path::PathBuf {
+    let path = dir.join("run.toml");
+    std::fs::write(&path, config(&dir.join("run"), listen).to_toml()).unwrap();
+    path
+}
+
+async fn start_learner(dir: &Path, listen: &str, resume: bool) -> Running {
+    start(ServeOptions { config: Some(write_config(dir, listen)), resume, ..ServeOptions::default() }).await.unwrap()
+}
+
+/// The ε of the first batch an actor's `--ack-log` records (waits for it).
+fn first_epsilon(ack_log: &Path) -> f32 {
+    wait_for_file(ack_log, 60, "a first acknowledged batch", |t| !t.is_empty() && t.ends_with('\n'));
+    ack_lines(ack_log)[0]["epsilon"].as_f64().expect("epsilon in the ack log") as f32
+}
+
+/// `first_episode_seed` of an actor's log (its "environments starting" line).
+fn first_episode_seed(log: &Path) -> String {
+    let text = wait_for_file(log, 60, "the environments' start", |t| t.contains("first_episode_seed="));
+    let at = text.find("first_episode_seed=").unwrap() + "first_episode_seed=".len();
+    text[at..].split_whitespace().next().unwrap().to_owned()
+}
+
+fn actor_args(ack_log: &Path) -> Vec<String> {
+    vec!["--batch-steps".into(), "16".into(), "--ack-log".into(), ack_log.display().to_string()]
+}
+
+fn strs(v: &[String]) -> Vec<&str> {
+    v.iter().map(String::as_str).collect()
+}
+
+/// Resumed past the end of the decay, a new actor process explores at `epsilon_end` from its first
+/// batch (it used to start again at `epsilon_start`: its own step count was 0).
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_resumed_run_past_its_decay_explores_at_the_schedules_end_from_the_first_batch() {
+    let dir = tempfile::tempdir().unwrap();
+    let addr = free_port();
+    let learner = start_learner(dir.path(), &addr, false).await;
+    let first = dir.path().join("ack-1.jsonl");
+    let mut a = spawn_actor(&addr, "a", &strs(&actor_args(&first)), &dir.path().join("a-1.log"));
+    wait_for(&addr, 120, "the run past its ε decay", |s| s.transitions_received > 2 * DECAY_STEPS).await;
+    // The first life's first batch explored heavily: the schedule starts at 1.
+    assert!(first_epsilon(&first) > 0.5, "{}", first_epsilon(&first));
+    a.kill9();
+    learner.stop().await.unwrap();
+
+    let learner = start_learner(dir.path(), &addr, true).await;
+    let second = dir.path().join("ack-2.jsonl");
+    let _a = spawn_actor(&addr, "a", &strs(&actor_args(&second)), &dir.path().join("a-2.log"));
+    let eps = first_epsilon(&second);
+    assert!((eps - EPSILON_END).abs() < 1e-6, "the resumed actor's first batch has ε = {eps}, want {EPSILON_END}");
+    let s = status(&addr).await;
+    assert!((s.epsilon - f64::from(EPSILON_END)).abs() < 1e-6, "Status's schedule at the run's step: {}", s.epsilon);
+    assert!((actor(&s, "a").unwrap().epsilon - EPSILON_END).abs() < 1e-6, "Status shows the actor's own ε");
+    learner.stop().await.unwrap();
+}
+
+/// One actor of a running run restarts under its name: it explores at the schedule's value for the
+/// run's step, not from the start, and it continues with new episodes rather than replaying its
+/// first life's routes and traffic.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_restarted_actor_keeps_the_runs_schedule_and_draws_new_episodes() {
+    let dir = tempfile::tempdir().unwrap();
+    let addr = free_port();
+    let learner = start_learner(dir.path(), &addr, false).await;
+    let (log1, log2) = (dir.path().join("a-1.log"), dir.path().join("a-2.log"));
+    let first = dir.path().join("ack-1.jsonl");
+    let mut a = spawn_actor(&addr, "a", &strs(&actor_args(&first)), &log1);
+    wait_for(&addr, 120, "the run past its ε decay", |s| s.transitions_received > 2 * DECAY_STEPS).await;
+    a.kill9();
+    let second = dir.path().join("ack-2.jsonl");
+    let _a = spawn_actor(&addr, "a", &strs(&actor_args(&second)), &log2);
+    let eps = first_epsilon(&second);
+    assert!((eps - EPSILON_END).abs() < 1e-6, "the restarted actor's first batch has ε = {eps}, want {EPSILON_END}");
+    let (seed1, seed2) = (first_episode_seed(&log1), first_episode_seed(&log2));
+    assert_ne!(seed1, seed2, "the restarted actor replays its first life's episodes");
+    assert!(std::fs::read_to_string(&log1).unwrap().contains("episode_stream=0 "), "a fresh run's first life draws stream 0");
+    learner.stop().await.unwrap();
+}
+
+/// A second learner on a run directory in use is refused at once, naming the holder; the first
+/// goes on.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_second_learner_on_a_run_directory_is_refused_naming_the_holder() {
+    let dir = tempfile::tempdir().unwrap();
+    let addr = free_port();
+    let learner = start_learner(dir.path(), &addr, false).await;
+    let cfg = write_config(dir.path(), "127.0.0.1:0");
+    for resume in [false, true] {
+        let err = start(ServeOptions { config: Some(cfg.clone()), resume, ..ServeOptions::default() }).await.unwrap_err();
+        let msg = format!("{err:#}");
+        assert!(msg.contains(&format!("is in use by another process (PID {} on host", std::process::id())), "{msg}");
+    }
+    // The first one is untouched: it answers, and its address file is its own.
+    let s = status(&addr).await;
+    assert_eq!(s.run_id, learner.shared.run_id);
+    assert_eq!(std::fs::read_to_string(dir.path().join("run/server.addr")).unwrap(), addr);
+    learner.stop().await.unwrap();
+}
+
+fn actor_train(cfg: &Path, run_dir: &Path, extra: &[&str]) -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_actor"));
+    c.args(["train", "--config"]).arg(cfg).arg("--run-dir").arg(run_dir).args(["--eval-every", "0", "--envs", "2"]).args(extra);
+    c.env("RUST_LOG", "info");
+    c
+}
+
+/// `actor train` twice on one run directory: the second refuses, naming the first; SIGKILL of the
+/// first leaves no actor process behind (they watch a pipe from it), its lock goes with it, and the
+/// same command resumes with every batch the learner had acknowledged.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn actor_train_owns_its_run_directory_and_its_actors_die_with_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let cfg = write_config(dir.path(), "127.0.0.1:0");
+    let run_dir = dir.path().join("train");
+    let mut first = Process::spawn(actor_train(&cfg, &run_dir, &[]), &dir.path().join("train-1.log"));
+    let addr = wait_for_file(&run_dir.join("server.addr"), 60, "the learner's address", |t| !t.is_empty()).trim().to_owned();
+    wait_for(&addr, 120, "transitions from actor train's actor", |s| s.transitions_received > 200).await;
+
+    let second_log = dir.path().join("train-2.log");
+    let mut second = Process::spawn(actor_train(&cfg, &run_dir, &[]), &second_log);
+    let exit = second.wait_exit(30);
+    let stderr = std::fs::read_to_string(&second_log).unwrap();
+    assert!(exit.is_some_and(|e| !e.success()), "a second actor train on the same run directory ran ({exit:?}): {stderr}");
+    assert!(stderr.contains(&format!("is in use by another process (PID {} on host", first.pid())), "{stderr}");
+    let before = status(&addr).await;
+    assert!(first.0.try_wait().unwrap().is_none(), "the first actor train stopped");
+
+    let actors = children_of(first.pid());
+    assert!(!actors.is_empty(), "actor train has no actor process");
+    // Acknowledged batches are durable within milliseconds (group commit); let the last ones land.
+    tokio::time::sleep(Duration::from_secs(1)).await;
+    first.kill9();
+    let deadline = Instant::now() + Duration::from_secs(2);
+    while actors.iter().any(|&p| alive(p)) && Instant::now() < deadline {
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
+    let left: Vec<u32> = actors.iter().copied().filter(|&p| alive(p)).collect();
+    for &p in &left {
+        let _ = Command::new("kill").args(["-9", &p.to_string()]).status();
+    }
+    assert!(left.is_empty(), "actor processes {left:?} outlived the SIGKILLed actor train by 2 s");
+
+    // The same command resumes (the dead holder's lock is gone) with every acknowledged step.
+    let resumed_log = dir.path().join("train-3.log");
+    let mut resumed = Process::spawn(actor_train(&cfg, &run_dir, &["--max-env-steps", "1"]), &resumed_log);
+    let exit = resumed.wait_exit(60);
+    let stderr = std::fs::read_to_string(&resumed_log).unwrap();
+    assert!(exit.is_some_and(|e| e.success()), "the resumed actor train ({exit:?}): {stderr}");
+    assert!(stderr.contains("resuming the run"), "{stderr}");
+    let at = stderr.find("the run has already received ").expect(&stderr) + "the run has already received ".len();
+    let resumed: u64 = stderr[at..].split_whitespace().next().unwrap().parse().unwrap();
+    assert!(resumed >= before.transitions_received, "resumed with {resumed} env steps, {} were acknowledged", before.transitions_received);
+}
