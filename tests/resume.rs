@@ -25,6 +25,8 @@ fn config(run_dir: &Path, listen: &str) -> RunConfig {
     cfg.agent.replay_capacity = 5000;
     cfg.agent.replay_ratio = 0.25;
     cfg.service.listen = listen.into();
+    // Small segments, so that a log has several (the smallest size the configuration allows).
+    cfg.service.replay_log_segment_bytes = 64 << 10;
     cfg
 }
 
@@ -181,4 +183,79 @@ async fn actor_train_owns_its_run_directory_and_its_actors_die_with_it() {
     let at = stderr.find("the run has already received ").expect(&stderr) + "the run has already received ".len();
     let resumed: u64 = stderr[at..].split_whitespace().next().unwrap().parse().unwrap();
     assert!(resumed >= before.transitions_received, "resumed with {resumed} env steps, {} were acknowledged", before.transitions_received);
+}
+
+/// A fresh run fed by one actor until it holds `steps` env steps, then stopped (actor killed,
+/// learner stopped with its final checkpoint). Returns the learner's last status.
+async fn a_stopped_run(dir: &Path, steps: u64) -> proto::v1::StatusResponse {
+    let addr = free_port();
+    let learner = start_learner(dir, &addr, false).await;
+    let mut a = spawn_actor(&addr, "a", &["--batch-steps", "16"], &dir.join("a.log"));
+    wait_for(&addr, 120, "the run's steps", |s| s.transitions_received >= steps).await;
+    a.kill9();
+    tokio::time::sleep(Duration::from_millis(300)).await;
+    let s = status(&addr).await;
+    learner.stop().await.unwrap();
+    s
+}
+
+fn resume_options(dir: &Path, truncate_log: bool) -> ServeOptions {
+    ServeOptions { config: Some(write_config(dir, "127.0.0.1:0")), resume: true, truncate_log, ..ServeOptions::default() }
+}
+
+/// The log's segments, oldest first.
+fn segments(dir: &Path) -> Vec<std::path::PathBuf> {
+    let mut v: Vec<_> = std::fs::read_dir(dir.join("run").join(learner::wal::DIR)).unwrap().map(|e| e.unwrap().path()).collect();
+    v.sort();
+    v
+}
+
+/// Records in a segment file.
+fn records_in(path: &Path) -> u64 {
+    learner::wal::format::records(&std::fs::read(path).unwrap()).0.len() as u64
+}
+
+/// A log damaged in the middle (a segment that repeats earlier positions, as two learners writing
+/// one run left it) is refused with the position and what truncating drops; `--truncate-log`
+/// resumes from the intact part, dropping exactly that, and keeps the damaged part aside.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_log_damaged_in_the_middle_resumes_from_its_intact_part_when_asked() {
+    let dir = tempfile::tempdir().unwrap();
+    a_stopped_run(dir.path(), 1500).await;
+    let segs: Vec<_> = segments(dir.path()).into_iter().filter(|p| records_in(p) > 0).collect();
+    assert!(segs.len() >= 4, "want several segments, got {segs:?}");
+    let mid = segs.len() / 2;
+    std::fs::copy(&segs[0], &segs[mid]).unwrap();
+    let kept: u64 = segs[..mid].iter().map(|p| records_in(p)).sum();
+    let dropped: u64 = segs[mid..].iter().map(|p| records_in(p)).sum();
+
+    let err = format!("{:#}", start(resume_options(dir.path(), false)).await.unwrap_err());
+    assert!(err.contains(&format!("replay log segment {} is damaged: position 1 follows {kept}", segs[mid].display())), "{err}");
+    assert!(err.contains(&format!("Every batch up to position {kept} is intact")), "{err}");
+    assert!(err.contains(&format!("resume again with --truncate-log: it drops the {dropped} batches")), "{err}");
+
+    let learner = start(resume_options(dir.path(), true)).await.unwrap();
+    assert_eq!(learner::service::status(&learner.shared).replay_log_first_position, 1);
+    let in_log: u64 = segments(dir.path()).iter().map(|p| records_in(p)).sum();
+    assert_eq!(in_log, kept, "the log keeps exactly its intact part");
+    let aside = dir.path().join("run").join(learner::wal::DAMAGED_DIR);
+    assert_eq!(std::fs::read_dir(&aside).unwrap().count(), segs.len() - mid, "the damaged segments are kept aside");
+    learner.stop().await.unwrap();
+    // And the log reads whole from now on.
+    start(resume_options(dir.path(), false)).await.unwrap().stop().await.unwrap();
+}
+
+/// The newest checkpoint's weights truncated on disk: the resume loads the previous checkpoint and
+/// still counts every acknowledged step (the replay log holds them).
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_truncated_newest_checkpoint_resumes_from_the_previous_one() {
+    let dir = tempfile::tempdir().unwrap();
+    let before = a_stopped_run(dir.path(), 300).await;
+    let online = dir.path().join("run/checkpoint/online.safetensors");
+    let bytes = std::fs::read(&online).unwrap();
+    std::fs::write(&online, &bytes[..1000]).unwrap();
+    let learner = start(resume_options(dir.path(), false)).await.unwrap();
+    let s = learner::service::status(&learner.shared);
+    assert!(s.transitions_received >= before.transitions_received, "{} < {}", s.transitions_received, before.transitions_received);
+    learner.stop().await.unwrap();
 }

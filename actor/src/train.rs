@@ -60,6 +60,11 @@ pub struct TrainArgs {
     /// Runs per route of each periodic evaluation (fixed seeds, the same every time).
     #[arg(long, default_value_t = 2)]
     pub eval_runs: u32,
+    /// When resuming a run whose replay log cannot be read whole (a record out of order or that
+    /// does not decode): keep every batch before the damage and set the rest aside in
+    /// RUN_DIR/replay-log.damaged/ (without it, such a log is refused with what it would drop).
+    #[arg(long)]
+    pub truncate_log: bool,
 }
 
 pub async fn run(args: &TrainArgs) -> Result<()> {
@@ -92,6 +97,7 @@ pub async fn run(args: &TrainArgs) -> Result<()> {
         listen: Some("127.0.0.1:0".into()),
         run_dir: Some(args.run_dir.clone()),
         resume,
+        truncate_log: args.truncate_log,
         ..ServeOptions::default()
     })
     .await?;

@@ -34,6 +34,11 @@ enum Command {
         /// Continue the run in --run-dir from its checkpoint: same counters, weights and optimizer.
         #[arg(long)]
         resume: bool,
+        /// With --resume, when the replay log cannot be read whole (a record out of order or that
+        /// does not decode): keep every batch before the damage and set the rest aside in
+        /// RUN_DIR/replay-log.damaged/ (without it, such a log is refused with what it would drop).
+        #[arg(long, requires = "resume")]
+        truncate_log: bool,
         /// Serve Prometheus metrics over HTTP at this address, host:port.
         #[arg(long)]
         metrics_listen: Option<String>,
@@ -245,8 +250,8 @@ fn main() -> Result<()> {
     let rt = tokio::runtime::Builder::new_multi_thread().worker_threads(2).enable_all().build()?;
     rt.block_on(async move {
         match cli.command {
-            Command::Serve { config, listen, run_dir, resume, metrics_listen, auth_token_file } => {
-                serve(ServeOptions { config, listen, run_dir, resume, metrics_listen, auth_token_file }).await
+            Command::Serve { config, listen, run_dir, resume, truncate_log, metrics_listen, auth_token_file } => {
+                serve(ServeOptions { config, listen, run_dir, resume, truncate_log, metrics_listen, auth_token_file }).await
             }
             Command::Status { addr, run_dir, json, auth_token_file } => {
                 let token = auth_token_file.as_deref().map(proto::client::read_token).transpose()?;

@@ -29,7 +29,7 @@ use crate::run_lock::RunLock;
 use crate::service::LearnerService;
 use crate::state::{PublishedWeights, Shared, TrainStats};
 use crate::versions::VersionLease;
-use crate::wal::ReplayLog;
+use crate::wal::{OnDamage, ReplayLog};
 use agent::checkpoint::Counters;
 use agent::config::{Durability, RunConfig};
 
@@ -40,6 +40,8 @@ pub struct ServeOptions {
     pub listen: Option<String>,
     pub run_dir: Option<PathBuf>,
     pub resume: bool,
+    /// Resume from the intact part of a damaged replay log (see [`OnDamage::Truncate`]).
+    pub truncate_log: bool,
     pub metrics_listen: Option<String>,
     pub auth_token_file: Option<PathBuf>,
 }
@@ -206,7 +208,10 @@ async fn start_with(opts: ServeOptions, train: Trainer) -> Result<Running> {
     });
     let log = match cfg.service.durability {
         Durability::None => None,
-        Durability::Ack => Some(rebuild(&run_dir, &cfg, frame_bytes, &mut replay, &mut counters)?),
+        Durability::Ack => {
+            let on_damage = if opts.truncate_log { OnDamage::Truncate } else { OnDamage::Refuse };
+            Some(rebuild(&run_dir, &cfg, frame_bytes, on_damage, &mut replay, &mut counters)?)
+        }
     };
     let mut versions = VersionLease::open(&run_dir, counters.weights_version)?;
     let version = versions.next_version().with_context(|| format!("leasing weights versions in {}", run_dir.display()))?;
@@ -335,22 +340,30 @@ fn supervised_training(shared: &Arc<Shared>, dqn: Dqn, run_dir: &Path, train: Tr
 
 /// Opens the replay log of `run_dir`, rebuilding `replay` from it, and adds the batches logged
 /// after the checkpoint (`counters.replay_log_position`) to `counters`.
-fn rebuild(run_dir: &Path, cfg: &RunConfig, frame_bytes: usize, replay: &mut Replay, counters: &mut Counters) -> Result<ReplayLog> {
+fn rebuild(
+    run_dir: &Path,
+    cfg: &RunConfig,
+    frame_bytes: usize,
+    on_damage: OnDamage,
+    replay: &mut Replay,
+    counters: &mut Counters,
+) -> Result<ReplayLog> {
     let started = Instant::now();
     let checkpointed = counters.replay_log_position;
     let mut after = Counters::default();
-    let (log, found) = ReplayLog::open(run_dir, frame_bytes, cfg.service.replay_log_segment_bytes, checkpointed, |position, record| {
-        let stored = replay.add_steps(record.actor, &record.steps) as u64;
-        if position > checkpointed {
-            let env_steps = record.steps.iter().filter(|s| s.t > 0).count() as u64;
-            after.env_steps += env_steps;
-            after.transitions_received += env_steps;
-            after.transitions_stored += stored;
-            after.episodes += u64::from(record.episodes);
-            after.replay_log_position = position;
-        }
-        replay.next_frame_id()
-    })?;
+    let (log, found) =
+        ReplayLog::open(run_dir, frame_bytes, cfg.service.replay_log_segment_bytes, checkpointed, on_damage, |position, record| {
+            let stored = replay.add_steps(record.actor, &record.steps) as u64;
+            if position > checkpointed {
+                let env_steps = record.steps.iter().filter(|s| s.t > 0).count() as u64;
+                after.env_steps += env_steps;
+                after.transitions_received += env_steps;
+                after.transitions_stored += stored;
+                after.episodes += u64::from(record.episodes);
+                after.replay_log_position = position;
+            }
+            replay.next_frame_id()
+        })?;
     // No actor continues an earlier process's streams.
     replay.end_all_streams();
     counters.env_steps += after.env_steps;

@@ -8,6 +8,9 @@ pub const FORMAT_VERSION: u32 = 1;
 pub const DIR: &str = "checkpoint";
 /// Where the previous checkpoint waits while a new one is swapped in.
 pub const OLD_DIR: &str = "checkpoint.old";
+/// The checkpoint before the newest, kept so that a newest one damaged on disk is not the end of
+/// the run: a resume falls back to it.
+pub const PREV_DIR: &str = "checkpoint.prev";
 /// Prefix of the temporary directories a save writes into.
 pub const TMP_PREFIX: &str = "checkpoint.tmp-";
 

@@ -19,8 +19,8 @@ use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
 
 use agent::checkpoint::{
-    CONFIG, CheckpointError, Counters, FILES, FORMAT_VERSION, MANIFEST, OLD_DIR, ONLINE, OPTIMIZER, STATE, State, TARGET, TMP_PREFIX,
-    locate, manifest_of, read_verified,
+    CONFIG, CheckpointError, Counters, FILES, FORMAT_VERSION, MANIFEST, OLD_DIR, ONLINE, OPTIMIZER, PREV_DIR, Progress, STATE, State,
+    TARGET, TMP_PREFIX, locate, manifest_of, read_verified,
 };
 use agent::weights::{self, WeightsError};
 
@@ -35,6 +35,9 @@ pub struct Loaded {
     pub counters: Counters,
     /// The run configuration saved with the checkpoint (TOML text).
     pub config_toml: String,
+    /// Set when the newest checkpoint was unusable and the previous one was loaded: why, and
+    /// what was lost.
+    pub fell_back: Option<String>,
 }
 
 /// Saves the whole learner state into `run_dir/checkpoint/`, replacing any previous checkpoint
@@ -82,11 +85,20 @@ pub fn save(run_dir: &Path, dqn: &Dqn, counters: &Counters, config_toml: &str) -
     }
 
     // The new checkpoint is committed: what follows is tidying, and its failures are only logged.
+    // The one it replaced becomes the previous checkpoint (the one before goes).
     let old = run_dir.join(OLD_DIR);
-    if old.exists()
-        && let Err(e) = fs::remove_dir_all(&old)
-    {
-        tracing::warn!("checkpoint saved, but removing {} failed: {e}", old.display());
+    if old.exists() {
+        let prev = run_dir.join(PREV_DIR);
+        let kept = (|| {
+            if prev.exists() {
+                fs::remove_dir_all(&prev)?;
+            }
+            fs::rename(&old, &prev)
+        })();
+        if let Err(e) = kept {
+            tracing::warn!("checkpoint saved, but keeping {} as {} failed: {e}", old.display(), prev.display());
+            let _ = fs::remove_dir_all(&old);
+        }
     }
     remove_stale_temporaries(run_dir, pid);
     if let Err(e) = sync_dir(run_dir) {
@@ -101,7 +113,40 @@ pub fn save(run_dir: &Path, dqn: &Dqn, counters: &Counters, config_toml: &str) -
 /// verified before `dqn` is touched: on error it is unchanged. Adam's learning rate stays the
 /// `dqn`'s own.
 pub fn load(run_dir: &Path, dqn: &mut Dqn) -> Result<Loaded, CheckpointError> {
-    let dir = locate(run_dir)?;
+    let newest = locate(run_dir)?;
+    let err = match load_from(&newest, dqn) {
+        Ok(loaded) => return Ok(loaded),
+        Err(e @ (CheckpointError::Corrupt { .. } | CheckpointError::Missing { .. })) => e,
+        Err(e) => return Err(e),
+    };
+    let prev = run_dir.join(PREV_DIR);
+    if !prev.is_dir() {
+        return Err(err);
+    }
+    let mut loaded = match load_from(&prev, dqn) {
+        Ok(loaded) => loaded,
+        // Both unusable: the newest's defect is the one to report.
+        Err(_) => return Err(err),
+    };
+    let newest_step = fs::read(newest.join(STATE)).ok().and_then(|b| Progress::from_state_json(&b).learner_step);
+    let lost = match newest_step {
+        Some(n) => format!("the {} updates between them are lost", n.saturating_sub(loaded.counters.learner_step)),
+        None => "the updates between them are lost".to_owned(),
+    };
+    let note = format!(
+        "the newest checkpoint is unusable ({err}); resumed from the previous one, {} (learner step {}): {lost}; \
+         the replay log still holds every acknowledged batch",
+        prev.display(),
+        loaded.counters.learner_step
+    );
+    tracing::warn!("{note}");
+    loaded.fell_back = Some(note);
+    Ok(loaded)
+}
+
+/// Loads the checkpoint directory `dir` (see [`load`]).
+fn load_from(dir: &Path, dqn: &mut Dqn) -> Result<Loaded, CheckpointError> {
+    let dir = dir.to_owned();
     let [online, target, optimizer, state, config] = read_verified(&dir)?;
 
     let state_path = dir.join(STATE);
@@ -143,7 +188,7 @@ pub fn load(run_dir: &Path, dqn: &mut Dqn) -> Result<Loaded, CheckpointError> {
     dqn.adam.v = v;
     dqn.adam.t = state.adam_t;
     dqn.updates = counters.learner_step;
-    Ok(Loaded { counters, config_toml })
+    Ok(Loaded { counters, config_toml, fell_back: None })
 }
 
 /// Adam's moments as a safetensors file: `m.<param>` and `v.<param>` for every slot.
@@ -274,7 +319,7 @@ mod tests {
         let mut resumed = fresh(shape());
         assert_ne!(snapshot(&resumed), snapshot(&saved), "the fresh agent starts elsewhere");
         let loaded = load(tmp.path(), &mut resumed).unwrap();
-        assert_eq!(loaded, Loaded { counters: counters(), config_toml: CONFIG_TOML.into() });
+        assert_eq!(loaded, Loaded { counters: counters(), config_toml: CONFIG_TOML.into(), fell_back: None });
         assert_eq!(loaded.counters.elapsed_secs.to_bits(), 3969.3421758078052f64.to_bits());
         let s = snapshot(&saved);
         assert_ne!(s.0, s.1, "online and target differ after 4 updates with a sync at 3");
@@ -422,22 +467,57 @@ mod tests {
         // The next save installs a checkpoint and tidies up: the stale directories are gone.
         let next = Counters { learner_step: 5, ..counters() };
         save(tmp.path(), &dqn, &next, CONFIG_TOML).unwrap();
-        assert_eq!(entries(tmp.path()), ["checkpoint"]);
+        assert_eq!(entries(tmp.path()), ["checkpoint", "checkpoint.prev"]);
         assert_eq!(load(tmp.path(), &mut fresh(shape())).unwrap().counters, next);
     }
 
     #[test]
-    fn saving_twice_leaves_one_checkpoint_the_latest() {
+    fn saving_twice_leaves_the_latest_and_the_previous_checkpoint() {
         let tmp = tempfile::tempdir().unwrap();
         let mut dqn = trained(shape());
         save(tmp.path(), &dqn, &counters(), CONFIG_TOML).unwrap();
         dqn.update(&batch());
         let second = Counters { learner_step: 5, env_steps: 2000, ..counters() };
         save(tmp.path(), &dqn, &second, "[agent]\ngamma = 0.8\n").unwrap();
-        assert_eq!(entries(tmp.path()), ["checkpoint"]);
+        assert_eq!(entries(tmp.path()), ["checkpoint", "checkpoint.prev"]);
         let mut resumed = fresh(shape());
         let loaded = load(tmp.path(), &mut resumed).unwrap();
-        assert_eq!(loaded, Loaded { counters: second, config_toml: "[agent]\ngamma = 0.8\n".into() });
+        assert_eq!(loaded, Loaded { counters: second.clone(), config_toml: "[agent]\ngamma = 0.8\n".into(), fell_back: None });
         assert_eq!(snapshot(&resumed), snapshot(&dqn));
+        // A third save keeps two, the second as the previous one.
+        let third = Counters { learner_step: 6, ..second.clone() };
+        save(tmp.path(), &dqn, &third, CONFIG_TOML).unwrap();
+        assert_eq!(entries(tmp.path()), ["checkpoint", "checkpoint.prev"]);
+        let state = fs::read(tmp.path().join(PREV_DIR).join(STATE)).unwrap();
+        assert_eq!(Progress::from_state_json(&state).learner_step, Some(5));
+    }
+
+    /// The newest checkpoint's weights truncated on disk (issue: "one truncated file today ends
+    /// the run"): the previous checkpoint is loaded instead, saying what was lost.
+    #[test]
+    fn a_damaged_newest_checkpoint_falls_back_to_the_previous_one() {
+        let tmp = tempfile::tempdir().unwrap();
+        let first = trained(shape());
+        save(tmp.path(), &first, &counters(), CONFIG_TOML).unwrap();
+        let mut newer = trained(shape());
+        for _ in 0..3 {
+            newer.update(&batch());
+        }
+        save(tmp.path(), &newer, &Counters { learner_step: 7, ..counters() }, CONFIG_TOML).unwrap();
+        let online = tmp.path().join(DIR).join(ONLINE);
+        let bytes = fs::read(&online).unwrap();
+        fs::write(&online, &bytes[..1000]).unwrap();
+        let mut dqn = fresh(shape());
+        let loaded = load(tmp.path(), &mut dqn).unwrap();
+        assert_eq!(loaded.counters, counters());
+        assert_eq!(snapshot(&dqn), snapshot(&first));
+        let note = loaded.fell_back.expect("says it fell back");
+        assert!(note.contains(&format!("{} is corrupt: truncated", online.display())), "{note}");
+        assert!(note.contains("(learner step 4): the 3 updates between them are lost"), "{note}");
+        // Both damaged: the newest's defect is reported.
+        let prev_online = tmp.path().join(PREV_DIR).join(ONLINE);
+        fs::write(&prev_online, b"x").unwrap();
+        let e = load(tmp.path(), &mut fresh(shape())).unwrap_err().to_string();
+        assert!(e.starts_with(&format!("checkpoint {} is corrupt", online.display())), "{e}");
     }
 }

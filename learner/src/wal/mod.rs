@@ -40,6 +40,27 @@ pub enum LogError {
     Corrupt { path: PathBuf, reason: String },
     #[error("replay log failed earlier ({0}); nothing more is acknowledged")]
     Failed(Arc<str>),
+    #[error(
+        "replay log segment {} is damaged: {reason}. Every batch up to position {intact_to} is intact; to resume from \
+         the intact part, resume again with --truncate-log: it drops the {dropped} batches from the damage on (the \
+         damaged segments are kept in {})",
+        path.display(),
+        DAMAGED_DIR
+    )]
+    Damaged { path: PathBuf, reason: String, intact_to: u64, dropped: u64 },
+}
+
+/// Where `--truncate-log` moves what it cuts off, inside the run directory (never read back).
+pub const DAMAGED_DIR: &str = "replay-log.damaged";
+
+/// What to do with a log that cannot be read whole (a record out of order, one that does not
+/// decode, a segment of another camera): refuse, naming the damage, or keep what is before it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum OnDamage {
+    #[default]
+    Refuse,
+    /// Keep every batch before the damage; set the rest aside in [`DAMAGED_DIR`].
+    Truncate,
 }
 
 /// What reading the log at start found.
@@ -51,6 +72,8 @@ pub struct Recovered {
     pub last_position: u64,
     /// Bytes cut off torn or corrupt segment ends.
     pub cut_bytes: u64,
+    /// Batches set aside after damage (with [`OnDamage::Truncate`]).
+    pub dropped_batches: u64,
 }
 
 /// Disk use and positions, for the status.
@@ -107,6 +130,34 @@ struct Inner {
     durable_sync: (Mutex<Durable>, Condvar),
 }
 
+/// `--truncate-log`: copies a damaged segment and every later one to [`DAMAGED_DIR`], then cuts
+/// the damaged one to its intact first `intact_bytes` (removed if nothing of it is intact) and
+/// removes the later ones from the log.
+fn set_aside<'a>(run_dir: &Path, damaged: &Path, intact_bytes: usize, later: impl Iterator<Item = &'a Path>) -> Result<(), LogError> {
+    let aside = run_dir.join(DAMAGED_DIR);
+    fs::create_dir_all(&aside).map_err(io(&aside, "creating"))?;
+    let keep = |p: &Path| -> Result<PathBuf, LogError> {
+        let to = aside.join(p.file_name().unwrap_or_default());
+        fs::copy(p, &to).map_err(io(p, "copying aside"))?;
+        File::open(&to).and_then(|f| f.sync_all()).map_err(io(&to, "syncing"))?;
+        Ok(to)
+    };
+    keep(damaged)?;
+    for p in later {
+        keep(p)?;
+        fs::remove_file(p).map_err(io(p, "removing"))?;
+    }
+    sync_dir(&aside)?;
+    if intact_bytes > format::SEGMENT_HEADER {
+        let f = fs::OpenOptions::new().write(true).open(damaged).map_err(io(damaged, "opening"))?;
+        f.set_len(intact_bytes as u64).map_err(io(damaged, "truncating"))?;
+        f.sync_all().map_err(io(damaged, "syncing"))?;
+    } else {
+        fs::remove_file(damaged).map_err(io(damaged, "removing"))?;
+    }
+    Ok(())
+}
+
 /// The replay log of a run (see the module documentation).
 #[derive(Debug)]
 pub struct ReplayLog {
@@ -121,11 +172,15 @@ impl ReplayLog {
     /// later segments are still read. New batches go to a new segment, at positions above the
     /// log's last one and above `after` (a checkpoint's position, should the log have lost its
     /// tail).
+    ///
+    /// A log that cannot be read whole is refused with [`LogError::Damaged`], naming the damage
+    /// and what truncating would drop, unless `on_damage` is [`OnDamage::Truncate`].
     pub fn open(
         run_dir: &Path,
         frame_bytes: usize,
         segment_bytes: u64,
         after: u64,
+        on_damage: OnDamage,
         mut apply: impl FnMut(u64, &Record<'_>) -> u64,
     ) -> Result<(Self, Recovered), LogError> {
         let dir = run_dir.join(DIR);
@@ -143,33 +198,66 @@ impl ReplayLog {
         let mut rec = Recovered::default();
         let mut segments = VecDeque::new();
         let mut frame_end = 0u64;
-        for (first, path) in names {
+        for (k, (first, path)) in names.iter().enumerate() {
+            let (first, path) = (*first, path.clone());
             let bytes = fs::read(&path).map_err(io(&path, "reading"))?;
             if bytes.len() <= format::SEGMENT_HEADER {
                 // Created but never written to (the last segment of an earlier process).
                 fs::remove_file(&path).map_err(io(&path, "removing an empty segment"))?;
                 continue;
             }
-            let frames = format::read_segment_header(&bytes).map_err(|reason| LogError::Corrupt { path: path.clone(), reason })?;
-            if frames != frame_bytes {
-                return Err(LogError::Corrupt {
-                    path,
-                    reason: format!("it holds frames of {frames} bytes; this run's camera makes {frame_bytes}"),
-                });
-            }
+            // Damage: (byte offset where the intact part ends, records from there on, why).
+            let mut damage: Option<(usize, u64, String)> = match format::read_segment_header(&bytes) {
+                Err(reason) => Some((0, format::records(&bytes).0.len() as u64, reason)),
+                Ok(frames) if frames != frame_bytes => Some((
+                    0,
+                    format::records(&bytes).0.len() as u64,
+                    format!("it holds frames of {frames} bytes; this run's camera makes {frame_bytes}"),
+                )),
+                Ok(_) => None,
+            };
             let (records, valid, why) = format::records(&bytes);
-            for (position, payload) in records {
-                if position <= rec.last_position {
-                    return Err(LogError::Corrupt {
-                        path,
-                        reason: format!("position {position} follows {}: the log is out of order", rec.last_position),
-                    });
+            let total = records.len() as u64;
+            let mut offset = format::SEGMENT_HEADER;
+            for (i, (position, payload)) in records.into_iter().enumerate() {
+                if damage.is_some() {
+                    break;
                 }
-                let record = format::decode(payload, frame_bytes)
-                    .map_err(|reason| LogError::Corrupt { path: path.clone(), reason: format!("record {position}: {reason}") })?;
+                let bad = if position <= rec.last_position {
+                    Some(format!("position {position} follows {}: the log is out of order", rec.last_position))
+                } else {
+                    format::decode(payload, frame_bytes).err().map(|reason| format!("record {position}: {reason}"))
+                };
+                if let Some(reason) = bad {
+                    damage = Some((offset, total - i as u64, reason));
+                    break;
+                }
+                let record = format::decode(payload, frame_bytes).expect("decoded above");
                 frame_end = apply(position, &record);
                 rec.last_position = position;
                 rec.records += 1;
+                offset += format::RECORD_HEADER + payload.len();
+            }
+            if let Some((intact_bytes, here, reason)) = damage {
+                let later = &names[k + 1..];
+                let dropped = here + later.iter().map(|(_, p)| fs::read(p).map_or(0, |b| format::records(&b).0.len() as u64)).sum::<u64>();
+                if on_damage == OnDamage::Refuse {
+                    return Err(LogError::Damaged { path, reason, intact_to: rec.last_position, dropped });
+                }
+                set_aside(run_dir, &path, intact_bytes, later.iter().map(|(_, p)| p.as_path()))?;
+                tracing::warn!(
+                    segment = %path.display(),
+                    intact_to = rec.last_position,
+                    dropped_batches = dropped,
+                    "replay log damaged ({reason}): kept every batch up to position {}, dropped {dropped} batches (kept aside in {}/{DAMAGED_DIR})",
+                    rec.last_position,
+                    run_dir.display()
+                );
+                rec.dropped_batches = dropped;
+                if intact_bytes > format::SEGMENT_HEADER {
+                    segments.push_back(Segment { path, first, bytes: intact_bytes as u64, frame_end });
+                }
+                break;
             }
             if valid <= format::SEGMENT_HEADER {
                 tracing::warn!(segment = %path.display(), "replay log: {}; the segment holds no readable batch and is removed", why.as_deref().unwrap_or("empty"));
@@ -486,7 +574,7 @@ mod tests {
     /// Reads a log back: (position, actor, first t, steps) of every record.
     fn read_back(dir: &Path) -> (Vec<(u64, String, u32, usize)>, Recovered) {
         let mut seen = Vec::new();
-        let (log, rec) = ReplayLog::open(dir, 16, 1 << 16, 0, |p, r| {
+        let (log, rec) = ReplayLog::open(dir, 16, 1 << 16, 0, OnDamage::Refuse, |p, r| {
             seen.push((p, r.actor.to_owned(), r.steps[0].t, r.steps.len()));
             p * 100
         })
@@ -498,7 +586,7 @@ mod tests {
     #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
     async fn appended_batches_are_durable_when_acknowledged_and_read_back_in_order() {
         let dir = tempfile::tempdir().unwrap();
-        let (log, rec) = ReplayLog::open(dir.path(), 16, 1 << 16, 0, |_, _| unreachable!("empty")).unwrap();
+        let (log, rec) = ReplayLog::open(dir.path(), 16, 1 << 16, 0, OnDamage::Refuse, |_, _| unreachable!("empty")).unwrap();
         assert_eq!(rec, Recovered::default());
         // 200 batches of 20 steps (~1.3 KB each) over several 64 KiB segments, from concurrent
         // tasks as actors send; each waits for its own position (group commit).
@@ -534,7 +622,7 @@ mod tests {
             assert_eq!(ts, (0..50).map(|b| b * 20).collect::<Vec<_>>(), "actor a{a}'s batches in order");
         }
         // Reopened, positions continue after the last one.
-        let (log, _) = ReplayLog::open(dir.path(), 16, 1 << 16, 0, |p, _| p).unwrap();
+        let (log, _) = ReplayLog::open(dir.path(), 16, 1 << 16, 0, OnDamage::Refuse, |p, _| p).unwrap();
         assert_eq!(log.append(&payload("z", 0, 1).0).unwrap(), 201);
     }
 
@@ -542,7 +630,7 @@ mod tests {
     fn a_torn_tail_is_cut_off_and_later_batches_still_land() {
         let dir = tempfile::tempdir().unwrap();
         {
-            let (log, _) = ReplayLog::open(dir.path(), 16, 1 << 20, 0, |_, _| 0).unwrap();
+            let (log, _) = ReplayLog::open(dir.path(), 16, 1 << 20, 0, OnDamage::Refuse, |_, _| 0).unwrap();
             for b in 0..3 {
                 let p = log.append(&payload("a", b * 5, 5).0).unwrap();
                 log.wait_durable(p).unwrap();
@@ -559,7 +647,7 @@ mod tests {
         assert_eq!(seen.len(), 3);
         assert!(rec.cut_bytes > 0);
         // Cut for good: the next opening finds nothing to cut, and new batches follow.
-        let (log, rec) = ReplayLog::open(dir.path(), 16, 1 << 20, 0, |_, _| 0).unwrap();
+        let (log, rec) = ReplayLog::open(dir.path(), 16, 1 << 20, 0, OnDamage::Refuse, |_, _| 0).unwrap();
         assert_eq!((rec.records, rec.cut_bytes), (3, 0));
         let p = log.append(&payload("b", 0, 2).0).unwrap();
         log.wait_durable(p).unwrap();
@@ -571,7 +659,7 @@ mod tests {
     #[test]
     fn segments_whose_frames_left_the_replay_are_deleted() {
         let dir = tempfile::tempdir().unwrap();
-        let (log, _) = ReplayLog::open(dir.path(), 16, 64 << 10, 0, |_, _| 0).unwrap();
+        let (log, _) = ReplayLog::open(dir.path(), 16, 64 << 10, 0, OnDamage::Refuse, |_, _| 0).unwrap();
         // Each batch adds 40 frames; the replay (say) keeps the newest 400.
         let mut frames = 0u64;
         for b in 0..200 {
