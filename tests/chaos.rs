@@ -15,6 +15,9 @@
 //!   live actors show connected again once the disturbance is over;
 //! - the learner's resident memory stays under the replay's byte cap plus a stated overhead, and
 //!   the replay log under twice the cap plus two segments;
+//! - an actor restarted under its name explores, from its first batch, at no more than the
+//!   schedule's ε for the run's step when it restarted plus one batch's worth (not from the start
+//!   of the schedule);
 //! - no panic in any log.
 //!
 //! A summary line gives the figures. A test of the `actor` package (so that it can start the
@@ -112,6 +115,9 @@ struct World {
     refusals: u32,
     highest_version: u64,
     highest_step_seen: u64,
+    /// Actor restarts to check ε for: (actor, its ack log's lines before the restart, the
+    /// schedule's ε at the run's step then).
+    restarts: Vec<(usize, usize, f64)>,
 }
 
 struct ActorProc {
@@ -343,6 +349,10 @@ impl World {
         println!("[chaos] {} SIGKILLed", a.name);
         let wait = rng.random_range(3.0..8.0);
         self.watch(wait, false).await?;
+        if let Some(s) = status(&self.addr).await {
+            let acked = std::fs::read_to_string(self.dir.join(format!("acks-{k}.jsonl"))).unwrap_or_default().lines().count();
+            self.restarts.push((k, acked, s.epsilon));
+        }
         let a = &mut self.actors[k];
         a.child = Some(spawn_actor(&self.dir, &self.addr, k));
         a.since = Instant::now();
@@ -472,6 +482,7 @@ async fn run(minutes: f64, seed: u64) -> anyhow::Result<String> {
         refusals: 0,
         highest_version: 0,
         highest_step_seen: 0,
+        restarts: Vec::new(),
     };
     let result = schedule(&mut w, minutes, seed).await;
     // Whatever happened: no process outlives the test.
@@ -578,10 +589,11 @@ async fn schedule(w: &mut World, minutes: f64, seed: u64) -> anyhow::Result<Stri
     anyhow::ensure!(learner_log.contains("experience stream refused"), "the refusals were not logged");
 
     anyhow::ensure!(lost == 0, "{lost} acknowledged transitions are not in the replay log");
+    let excess = restarted_exploration(w)?;
     Ok(format!(
         "chaos summary: faults injected {}, transitions acknowledged {acked}, lost {lost}, learner restarts {}, max detection delay {:.1} s \
          (evicted {evicted}, refusals {}, max weights delay after a restart {:.1} s, max learner RSS {:.0} MiB, max replay log {:.2} MiB, \
-         last step {}, last version {}, seed {seed})",
+         last step {}, last version {}, max ε above the schedule after an actor restart {excess:.5}, seed {seed})",
         w.faults,
         w.learner_restarts,
         w.max_detection.as_secs_f64(),
@@ -595,6 +607,26 @@ async fn schedule(w: &mut World, minutes: f64, seed: u64) -> anyhow::Result<Stri
 }
 
 /// Every acknowledged batch against the replay log: (transitions acknowledged, lost, evicted).
+fn restarted_exploration(w: &World) -> anyhow::Result<f64> {
+    // One batch's worth of the schedule: the actors send 16 steps per batch.
+    let a = &config(&w.dir, &w.addr).agent;
+    let batch = 16.0 * f64::from(a.epsilon_start - a.epsilon_end) / a.epsilon_decay_steps as f64;
+    let mut max_excess = 0f64;
+    for &(k, before, schedule) in &w.restarts {
+        let text = std::fs::read_to_string(w.dir.join(format!("acks-{k}.jsonl")))?;
+        let Some(line) = text.lines().nth(before) else { continue };
+        let v: serde_json::Value = serde_json::from_str(line)?;
+        let eps = v["epsilon"].as_f64().unwrap_or(f64::NAN);
+        let excess = eps - schedule;
+        max_excess = max_excess.max(excess);
+        anyhow::ensure!(
+            excess <= batch + 1e-6,
+            "chaos-{k} explored at ε = {eps:.4} in its first batch after a restart; the schedule was at {schedule:.4} for the run's step"
+        );
+    }
+    Ok(max_excess)
+}
+
 fn audit(dir: &Path) -> anyhow::Result<(u64, u64, u64)> {
     let (entries, first) = learner::wal::inventory(&dir.join("run"), frame_bytes())?;
     let by_position: BTreeMap<u64, &learner::wal::Entry> = entries.iter().map(|e| (e.position, e)).collect();
