@@ -63,6 +63,8 @@ async fn register(
     rng: &mut ChaCha8Rng,
 ) -> Option<(Client, pb::RegisterResponse)> {
     let mut delay = 0.5f64;
+    // Said at WARN at the first failure and then once a minute, with the attempts in between.
+    let (mut warned, mut failures) = (None::<Instant>, 0u32);
     loop {
         if link.stop.load(Ordering::SeqCst) {
             return None;
@@ -80,7 +82,14 @@ async fn register(
             Ok(ok) => return Some(ok),
             Err(err) => {
                 let wait = delay * rng.random_range(0.75..1.25);
-                tracing::warn!(learner = %opts.learner, error = %format!("{err:#}"), retry_in_secs = format!("{wait:.1}"), "learner unreachable");
+                failures += 1;
+                let error = format!("{err:#}");
+                if warned.is_none_or(|t| t.elapsed() >= Duration::from_secs(60)) {
+                    tracing::warn!(learner = %opts.learner, %error, attempts = failures, retry_in_secs = format!("{wait:.1}"), "learner unreachable (said once a minute while it lasts)");
+                    warned = Some(Instant::now());
+                } else {
+                    tracing::debug!(learner = %opts.learner, %error, retry_in_secs = format!("{wait:.1}"), "learner unreachable");
+                }
                 wait_to_retry(link, Duration::from_secs_f64(wait)).await;
                 delay = (delay * 2.0).min(30.0);
             }
