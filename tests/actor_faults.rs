@@ -3,15 +3,16 @@
 //! stops forwarding (what a SIGSTOPped learner looks like from the network) or that keeps one
 //! address across the learner's restart.
 
+mod support;
+
 use std::path::Path;
-use std::process::{Child, Command, Stdio};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use agent::config::RunConfig;
 use learner::serve::{Running, ServeOptions, start};
-use proto::v1 as pb;
+use support::{Process, Signal, actor, signal, status};
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
 
 async fn start_learner(dir: &Path, edit: impl FnOnce(&mut RunConfig)) -> Running {
@@ -25,48 +26,8 @@ async fn start_learner(dir: &Path, edit: impl FnOnce(&mut RunConfig)) -> Running
     start(ServeOptions { config: Some(path), ..ServeOptions::default() }).await.unwrap()
 }
 
-/// An actor process that is killed when the test ends, also when it fails: an actor reconnects
-/// forever, so one left behind by a failed assertion would keep a core busy.
-struct ActorProcess(Child);
-
-impl std::ops::Deref for ActorProcess {
-    type Target = Child;
-    fn deref(&self) -> &Child {
-        &self.0
-    }
-}
-
-impl std::ops::DerefMut for ActorProcess {
-    fn deref_mut(&mut self) -> &mut Child {
-        &mut self.0
-    }
-}
-
-impl Drop for ActorProcess {
-    fn drop(&mut self) {
-        let _ = self.0.kill();
-        let _ = self.0.wait();
-    }
-}
-
-fn spawn_actor(addr: &str, name: &str, batch_steps: u32, log: &Path) -> ActorProcess {
-    let child = Command::new(env!("CARGO_BIN_EXE_actor"))
-        .args(["--learner", addr, "--envs", "2", "--id", name, "--batch-steps", &batch_steps.to_string()])
-        .env("RUST_LOG", "info")
-        .stdout(Stdio::null())
-        .stderr(std::fs::File::create(log).unwrap())
-        .spawn()
-        .unwrap();
-    ActorProcess(child)
-}
-
-async fn status(addr: &str) -> pb::StatusResponse {
-    let mut c = proto::client::connect(addr, None).await.unwrap();
-    c.status(pb::StatusRequest {}).await.unwrap().into_inner()
-}
-
-fn actor<'a>(s: &'a pb::StatusResponse, name: &str) -> Option<&'a pb::ActorStatus> {
-    s.actors.iter().find(|a| a.name == name)
+fn spawn_actor(addr: &str, name: &str, batch_steps: u32, log: &Path) -> Process {
+    support::spawn_actor(addr, name, &["--batch-steps", &batch_steps.to_string()], log)
 }
 
 /// Issue row: "learner with service.max_message_bytes = 1 MiB, a real actor with --batch-steps 200:
@@ -90,14 +51,13 @@ async fn an_actor_splits_its_batches_below_the_learners_message_limit() {
         if actor(&s, "a").is_some_and(|x| x.transitions >= 1000) {
             break s;
         }
-        let _ = a.try_wait().map(|e| assert!(e.is_none(), "the actor exited: {e:?}\n{}", std::fs::read_to_string(&log).unwrap()));
+        let _ = a.0.try_wait().map(|e| assert!(e.is_none(), "the actor exited: {e:?}\n{}", std::fs::read_to_string(&log).unwrap()));
         assert!(Instant::now() < deadline, "no transitions delivered: {s:#?}\n{}", std::fs::read_to_string(&log).unwrap());
         tokio::time::sleep(Duration::from_millis(300)).await;
     };
     let rec = actor(&s, "a").unwrap();
     assert_eq!((s.actors.len(), rec.registrations, rec.rejected_batches, s.batches_rejected), (1, 1, 0, 0), "{s:#?}");
-    a.kill().unwrap();
-    a.wait().unwrap();
+    a.kill9();
     learner.stop().await.unwrap();
 }
 
@@ -182,10 +142,10 @@ async fn an_actor_stops_within_its_flush_deadline_when_the_learner_is_frozen() {
     frozen.store(true, Ordering::SeqCst);
     // Steps pile up in the actor's outbox, unacknowledged.
     tokio::time::sleep(Duration::from_secs(2)).await;
-    assert!(Command::new("kill").args(["-INT", &a.id().to_string()]).status().unwrap().success());
+    assert!(signal(a.pid(), Signal::INT));
     let asked = Instant::now();
     let code = loop {
-        if let Some(code) = a.try_wait().unwrap() {
+        if let Some(code) = a.0.try_wait().unwrap() {
             break code;
         }
         assert!(
@@ -231,7 +191,7 @@ async fn an_actor_registers_again_as_soon_as_a_restarted_learner_answers() {
         if actor(&status(&addr).await, "a").is_some_and(|x| x.connected && x.transitions > 0) {
             break;
         }
-        assert!(a.try_wait().unwrap().is_none(), "the actor exited:\n{}", std::fs::read_to_string(&log).unwrap());
+        assert!(a.0.try_wait().unwrap().is_none(), "the actor exited:\n{}", std::fs::read_to_string(&log).unwrap());
         assert!(
             back.elapsed() < Duration::from_secs(6),
             "the actor is not streaming to the restarted learner 6 s after its return:\n{}",
@@ -239,7 +199,6 @@ async fn an_actor_registers_again_as_soon_as_a_restarted_learner_answers() {
         );
         tokio::time::sleep(Duration::from_millis(100)).await;
     }
-    a.kill().unwrap();
-    a.wait().unwrap();
+    a.kill9();
     second.stop().await.unwrap();
 }

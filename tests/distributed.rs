@@ -2,13 +2,15 @@
 //! stopped and resumed) and actor processes over loopback gRPC. Bounded in time: every wait has a
 //! deadline and fails with the status it last saw.
 
+mod support;
+
 use std::path::Path;
-use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
 use agent::config::RunConfig;
 use learner::serve::{Running, ServeOptions, start};
 use proto::v1 as pb;
+use support::{Process, Signal, actor, free_port, signal, status, wait_for};
 
 /// A run small enough to train in seconds: 16×16 gray camera, a tiny network.
 fn config(run_dir: &Path, listen: &str) -> RunConfig {
@@ -28,43 +30,8 @@ async fn start_learner(dir: &Path, listen: &str, resume: bool) -> Running {
     start(ServeOptions { config: Some(cfg_path), resume, ..ServeOptions::default() }).await.unwrap()
 }
 
-fn spawn_actor(addr: &str, name: &str, log: &Path) -> Child {
-    let log = std::fs::File::create(log).unwrap();
-    Command::new(env!("CARGO_BIN_EXE_actor"))
-        .args(["--learner", addr, "--envs", "2", "--id", name, "--batch-steps", "16"])
-        .env("RUST_LOG", "info")
-        .stdout(Stdio::null())
-        .stderr(log)
-        .spawn()
-        .unwrap()
-}
-
-async fn status(addr: &str) -> pb::StatusResponse {
-    let mut c = proto::client::connect(addr, None).await.unwrap();
-    c.status(pb::StatusRequest {}).await.unwrap().into_inner()
-}
-
-/// Polls the status until `ok` holds, for at most `secs`.
-async fn wait_for(addr: &str, secs: u64, what: &str, ok: impl Fn(&pb::StatusResponse) -> bool) -> pb::StatusResponse {
-    let deadline = Instant::now() + Duration::from_secs(secs);
-    loop {
-        let s = status(addr).await;
-        if ok(&s) {
-            return s;
-        }
-        assert!(Instant::now() < deadline, "timed out waiting for {what}; last status: {s:#?}");
-        tokio::time::sleep(Duration::from_millis(200)).await;
-    }
-}
-
-fn actor<'a>(s: &'a pb::StatusResponse, name: &str) -> Option<&'a pb::ActorStatus> {
-    s.actors.iter().filter(|a| a.name == name).max_by(|x, y| x.last_seen_secs.total_cmp(&y.last_seen_secs).reverse())
-}
-
-/// A free loopback port (bound and released), so that a restarted learner can come back on it.
-fn free_port() -> String {
-    let l = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
-    l.local_addr().unwrap().to_string()
+fn spawn_actor(addr: &str, name: &str, log: &Path) -> Process {
+    support::spawn_actor(addr, name, &["--batch-steps", "16"], log)
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
@@ -93,8 +60,7 @@ async fn actors_train_survive_each_other_and_a_learner_restart() {
     wait_for(&addr, 60, "actor a still streaming after the bad batch", |s| actor(s, "a").is_some_and(|x| x.transitions > before)).await;
 
     // kill -9 of one actor: the learner keeps training and the status shows it gone.
-    b.kill().unwrap();
-    b.wait().unwrap();
+    b.kill9();
     let step_then = status(&addr).await.learner_step;
     wait_for(&addr, 60, "b disconnected while training continues", |s| {
         actor(s, "b").is_some_and(|x| !x.connected) && s.learner_step > step_then
@@ -116,11 +82,10 @@ async fn actors_train_survive_each_other_and_a_learner_restart() {
     .await;
 
     // SIGTERM: the actor flushes and exits 0.
-    let pid = a.id().to_string();
-    assert!(Command::new("kill").args(["-TERM", &pid]).status().unwrap().success());
+    assert!(signal(a.pid(), Signal::TERM));
     let deadline = Instant::now() + Duration::from_secs(20);
     let code = loop {
-        if let Some(st) = a.try_wait().unwrap() {
+        if let Some(st) = a.0.try_wait().unwrap() {
             break st;
         }
         assert!(Instant::now() < deadline, "actor did not exit after SIGTERM");

@@ -169,7 +169,7 @@ async fn actor_train_owns_its_run_directory_and_its_actors_die_with_it() {
     }
     let left: Vec<u32> = actors.iter().copied().filter(|&p| alive(p)).collect();
     for &p in &left {
-        let _ = Command::new("kill").args(["-9", &p.to_string()]).status();
+        support::signal(p, support::Signal::KILL);
     }
     assert!(left.is_empty(), "actor processes {left:?} outlived the SIGKILLed actor train by 2 s");
 

@@ -9,6 +9,7 @@ use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
 use proto::v1 as pb;
+pub use rustix::process::Signal;
 
 /// A child process that is killed when the test ends, also when it fails: an actor reconnects
 /// for ever, so one left behind by a failed assertion would keep a core busy.
@@ -134,4 +135,9 @@ pub fn alive(pid: u32) -> bool {
         .ok()
         .and_then(|s| s.rsplit_once(')').map(|(_, rest)| !rest.trim_start().starts_with('Z')))
         .unwrap_or(false)
+}
+
+/// Sends `signal` to process `pid`; false if it could not (the process is gone).
+pub fn signal(pid: u32, signal: Signal) -> bool {
+    rustix::process::Pid::from_raw(pid as i32).is_some_and(|p| rustix::process::kill_process(p, signal).is_ok())
 }
