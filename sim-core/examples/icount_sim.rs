@@ -3,11 +3,14 @@
 //! one up and runs its measured work inside [`icount_measured`], the only function callgrind
 //! counts (`--collect-atstart=no --toggle-collect=*icount_measured*`), then prints one JSON line:
 //! the bench, its iterations and the CPU features this process saw (under valgrind, the ones
-//! valgrind emulates, not the host's).
+//! valgrind emulates, not the host's). `icount_sim time NAME REPEATS` runs the same work natively
+//! and prints its median wall time per iteration (to relate counts to time).
 //!
 //! Everything is single-threaded and seeded, so that a count depends on the code alone.
 
+use std::cell::Cell;
 use std::hint::black_box;
+use std::time::{Duration, Instant};
 
 use sim_core::camera::{Camera, CameraConfig, Image, SceneBox, car_box};
 use sim_core::config::EnvConfig;
@@ -28,10 +31,23 @@ const BENCHES: &[(&str, &str)] = &[
 const STEPS: u64 = 400;
 const RENDERS: u64 = 50;
 
+thread_local! {
+    /// `time` mode: the measured region's wall time so far (`None` under `run`, so that the clock
+    /// adds nothing to a count).
+    static TIMED: Cell<Option<Duration>> = const { Cell::new(None) };
+}
+
 /// The counted region: callgrind collects only while this function runs.
 #[inline(never)]
 fn icount_measured(work: &mut dyn FnMut()) {
-    work();
+    match TIMED.get() {
+        None => work(),
+        Some(so_far) => {
+            let start = Instant::now();
+            work();
+            TIMED.set(Some(so_far + start.elapsed()));
+        }
+    }
 }
 
 fn env_steps(camera: Option<CameraConfig>) -> u64 {
@@ -100,21 +116,39 @@ fn main() {
             }
         }
         ["run", name] => {
-            let iterations = match *name {
-                "env_step_camera_84x84" => env_steps(Some(CameraConfig::default())),
-                "env_step_camera_48x48" => env_steps(Some(CameraConfig { width: 48, height: 48, ..CameraConfig::default() })),
-                "env_step_no_camera" => env_steps(None),
-                "camera_render_84x84" => camera_render(),
-                other => {
-                    let names: Vec<&str> = BENCHES.iter().map(|b| b.0).collect();
-                    eprintln!("icount_sim: unknown bench `{other}`: expected one of {}", names.join(", "));
-                    std::process::exit(2);
-                }
-            };
+            let iterations = run(name);
             println!("{{\"bench\":\"{name}\",\"iterations\":{iterations},\"cpu_class\":\"{}\"}}", cpu_class());
         }
+        ["time", name, repeats] => {
+            // The same work, timed natively: the median over `repeats` runs of its time per iteration.
+            let repeats: usize = repeats.parse().unwrap_or(0).max(1);
+            let mut per_iteration: Vec<f64> = (0..repeats)
+                .map(|_| {
+                    TIMED.set(Some(Duration::ZERO));
+                    let iterations = run(name);
+                    TIMED.get().expect("set above").as_secs_f64() * 1e9 / iterations as f64
+                })
+                .collect();
+            per_iteration.sort_by(f64::total_cmp);
+            println!("{{\"bench\":\"{name}\",\"median_ns_per_iteration\":{:.0}}}", per_iteration[repeats / 2]);
+        }
         _ => {
-            eprintln!("usage: icount_sim list | icount_sim run NAME");
+            eprintln!("usage: icount_sim list | icount_sim run NAME | icount_sim time NAME REPEATS");
+            std::process::exit(2);
+        }
+    }
+}
+
+/// Runs bench `name`; returns its iterations.
+fn run(name: &str) -> u64 {
+    match name {
+        "env_step_camera_84x84" => env_steps(Some(CameraConfig::default())),
+        "env_step_camera_48x48" => env_steps(Some(CameraConfig { width: 48, height: 48, ..CameraConfig::default() })),
+        "env_step_no_camera" => env_steps(None),
+        "camera_render_84x84" => camera_render(),
+        other => {
+            let names: Vec<&str> = BENCHES.iter().map(|b| b.0).collect();
+            eprintln!("icount_sim: unknown bench `{other}`: expected one of {}", names.join(", "));
             std::process::exit(2);
         }
     }
