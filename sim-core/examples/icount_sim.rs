@@ -51,8 +51,7 @@ fn icount_measured(work: &mut dyn FnMut()) {
 }
 
 fn env_steps(camera: Option<CameraConfig>) -> u64 {
-    let mut cfg = EnvConfig::default();
-    cfg.camera = camera;
+    let cfg = EnvConfig { camera, ..EnvConfig::default() };
     let mut env = Env::new(Town::default_town(), cfg).expect("valid config");
     let expert = Expert::default();
     let mut episode = 1;
