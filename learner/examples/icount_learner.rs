@@ -212,7 +212,8 @@ fn status(calls: u64) -> anyhow::Result<u64> {
             a
         })
         .collect();
-    let episodes: VecDeque<EpisodeOutcome> = (0..100).map(|i| EpisodeOutcome { episode_return: f64::from(i) / 10.0, arrived: i % 3 == 0, collided: i % 7 == 0 }).collect();
+    let episodes: VecDeque<EpisodeOutcome> =
+        (0..100).map(|i| EpisodeOutcome { episode_return: f64::from(i) / 10.0, arrived: i % 3 == 0, collided: i % 7 == 0 }).collect();
     let counters = Counters { run_id: "icount".into(), learner_step: 100, env_steps: 10_000, ..Counters::default() };
     let shared = Shared {
         run_id: counters.run_id.clone(),
