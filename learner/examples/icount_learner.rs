@@ -231,6 +231,7 @@ fn status(calls: u64) -> anyhow::Result<u64> {
         data_arrived: (Mutex::new(()), Condvar::new()),
         shutdown: Default::default(),
         elapsed_before: 0.0,
+        resumed: false,
         log: None,
         versions: Mutex::new(VersionLease::open(dir.path(), 0)?),
         registrations: Default::default(),
@@ -238,6 +239,7 @@ fn status(calls: u64) -> anyhow::Result<u64> {
         warned_peers: Default::default(),
         failure: tokio::sync::watch::Sender::new(None),
         checkpoint_error: Mutex::new(None),
+        last_refusal: Mutex::new(None),
     };
     for _ in 0..calls {
         icount_measured(&mut || {
