@@ -16,7 +16,7 @@ async fn impossible_speed_distance_and_reward_are_refused_with_the_bound() {
     std::fs::write(&cfg_path, RunConfig::tiny(&dir.path().join("run")).to_toml()).unwrap();
     let running = start(ServeOptions { config: Some(cfg_path), ..ServeOptions::default() }).await.unwrap();
     let mut c = LearnerClient::connect(format!("http://{}", running.addr)).await.unwrap();
-    let reg = c.register(pb::RegisterRequest { name: "raw".into(), envs: 1, protocol: 1, ..Default::default() }).await.unwrap().into_inner();
+    let reg = c.register(register_request("raw")).await.unwrap().into_inner();
     let frame = running.shared.frame_bytes;
     let step = |t: u32, speed: f32, d: f32, reward: f32| pb::Step {
         t,
@@ -31,7 +31,8 @@ async fn impossible_speed_distance_and_reward_are_refused_with_the_bound() {
         (step(1, 1.0, 0.5, 3e38), "reward 300000000000000000000000000000000000000 is beyond what this run's reward"),
     ];
     for (seq, (s, expected)) in cases.into_iter().enumerate() {
-        let batch = pb::ExperienceBatch { actor_id: reg.actor_id.clone(), seq: seq as u64 + 1, steps: vec![s], epsilon: 0.5, ..Default::default() };
+        let batch =
+            pb::ExperienceBatch { actor_id: reg.actor_id.clone(), seq: seq as u64 + 1, steps: vec![s], epsilon: 0.5, ..Default::default() };
         let mut acks = c.stream_experience(tokio_stream::iter(vec![batch])).await.unwrap().into_inner();
         let e = acks.message().await.unwrap_err();
         assert_eq!(e.code(), Code::InvalidArgument, "{}", e.message());
@@ -45,4 +46,11 @@ async fn impossible_speed_distance_and_reward_are_refused_with_the_bound() {
     let mut acks = c.stream_experience(tokio_stream::iter(vec![batch])).await.unwrap().into_inner();
     assert_eq!(acks.message().await.unwrap().unwrap().seq, 10);
     running.stop().await.unwrap();
+}
+
+/// A registration of one environment. `..Default::default()` keeps this compiling as
+/// `RegisterRequest` gains fields (today it has no others).
+#[allow(clippy::needless_update)]
+fn register_request(name: &str) -> pb::RegisterRequest {
+    pb::RegisterRequest { name: name.into(), envs: 1, protocol: proto::v1::PROTOCOL, ..Default::default() }
 }

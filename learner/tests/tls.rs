@@ -53,8 +53,7 @@ fn target(r: &Running, ca: &Path, identity: Option<&(PathBuf, PathBuf)>) -> Targ
 /// Registers, streams one batch (acknowledged) and gets the weights, as an actor does.
 async fn act(r: &Running, t: &Target) {
     let mut c = connect_to(t, None).await.unwrap();
-    let reg =
-        c.register(pb::RegisterRequest { name: "tls".into(), envs: 1, protocol: 1, ..Default::default() }).await.unwrap().into_inner();
+    let reg = c.register(register_request("tls")).await.unwrap().into_inner();
     let steps = (0..3)
         .map(|t| pb::Step {
             t,
@@ -192,4 +191,11 @@ async fn a_token_is_refused_in_clear_to_a_non_loopback_address_before_connecting
     let t = Target::new("192.0.2.1:50051", None, true).unwrap();
     let e = connect_to(&t, Some("s3cret".into())).await.map(|_| ()).unwrap_err();
     assert!(!matches!(e, ClientError::Target(_)), "{e}");
+}
+
+/// A registration of one environment. `..Default::default()` keeps this compiling as
+/// `RegisterRequest` gains fields (today it has no others).
+#[allow(clippy::needless_update)]
+fn register_request(name: &str) -> pb::RegisterRequest {
+    pb::RegisterRequest { name: name.into(), envs: 1, protocol: proto::v1::PROTOCOL, ..Default::default() }
 }

@@ -19,7 +19,7 @@ def make_certs(out):
     return {name: (out / f"{name}.pem").read_bytes() for name in ["ca", "server", "server-key", "client", "client-key"]}
 
 
-def reflected_call(channel, service, method, **fields):
+def reflected_call(channel, service, method, fields=None):
     """Calls SERVICE/METHOD with messages built from the reflected descriptors alone."""
     db = ProtoReflectionDescriptorDatabase(channel)
     assert service in db.get_services()
@@ -29,7 +29,7 @@ def reflected_call(channel, service, method, **fields):
     response_cls = message_factory.GetMessageClass(m.output_type)
     call = channel.unary_unary(f"/{service}/{method}", request_serializer=request_cls.SerializeToString,
                                response_deserializer=response_cls.FromString)
-    return call(request_cls(**fields), timeout=10)
+    return call(request_cls(**(fields or {})), timeout=10)
 
 
 def health(channel):
@@ -62,7 +62,7 @@ def test_grpcio_over_tls_with_the_ca_and_refused_without(tmp_path, mutual):
         with grpc.secure_channel(target, creds) as channel:
             # SERVING is 1: field 1, varint 1 (checked without generated code).
             assert health(channel) == b"\x08\x01"
-            served = reflected_call(channel, "grpc.health.v1.Health", "Check", service="hybriddrive.v1.Learner")
+            served = reflected_call(channel, "grpc.health.v1.Health", "Check", {"service": "hybriddrive.v1.Learner"})
             assert served.status == 1, served
             reply = reflected_call(channel, "hybriddrive.v1.Learner", "Status")
             assert reply.run_id.startswith("run-"), reply
