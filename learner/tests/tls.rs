@@ -199,3 +199,55 @@ async fn a_token_is_refused_in_clear_to_a_non_loopback_address_before_connecting
 fn register_request(name: &str) -> pb::RegisterRequest {
     pb::RegisterRequest { name: name.into(), envs: 1, protocol: proto::v1::PROTOCOL, ..Default::default() }
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_metrics_endpoint_serves_the_same_tls() {
+    use std::sync::Arc;
+    use tokio::io::{AsyncReadExt, AsyncWriteExt};
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let ca = Ca::new(valid()).unwrap();
+    let server = write_pem(d, "server", &ca.server(&[HOST.into()], valid()).unwrap());
+    let cfg_path = d.join("run.toml");
+    std::fs::write(&cfg_path, RunConfig::tiny(&d.join("run")).to_toml()).unwrap();
+    let running = start(ServeOptions {
+        config: Some(cfg_path),
+        tls_cert: Some(server.0.clone()),
+        tls_key: Some(server.1.clone()),
+        metrics_listen: Some("0".into()),
+        ..ServeOptions::default()
+    })
+    .await
+    .unwrap();
+    // A bare port binds loopback.
+    let addr: std::net::SocketAddr = std::fs::read_to_string(d.join("run/metrics.addr")).unwrap().trim().parse().unwrap();
+    assert!(addr.ip().is_loopback(), "{addr}");
+
+    let mut roots = rustls::RootCertStore::empty();
+    roots.add(rustls::pki_types::CertificateDer::from(ca_der(&ca.pem.cert))).unwrap();
+    let provider = Arc::new(rustls::crypto::ring::default_provider());
+    let config = rustls::ClientConfig::builder_with_provider(provider)
+        .with_safe_default_protocol_versions()
+        .unwrap()
+        .with_root_certificates(roots)
+        .with_no_client_auth();
+    let tcp = tokio::net::TcpStream::connect(addr).await.unwrap();
+    let name = rustls::pki_types::ServerName::try_from(HOST).unwrap();
+    let mut tls = tokio_rustls::TlsConnector::from(Arc::new(config)).connect(name, tcp).await.unwrap();
+    tls.write_all(b"GET /metrics HTTP/1.1\r\nHost: x\r\n\r\n").await.unwrap();
+    let mut text = String::new();
+    tls.read_to_string(&mut text).await.ok();
+    assert!(text.starts_with("HTTP/1.1 200") && text.contains("learner_updates_total"), "{text}");
+    // Plain HTTP gets no metrics.
+    let mut plain = tokio::net::TcpStream::connect(addr).await.unwrap();
+    plain.write_all(b"GET /metrics HTTP/1.1\r\nHost: x\r\n\r\n").await.unwrap();
+    let mut answer = Vec::new();
+    plain.read_to_end(&mut answer).await.ok();
+    assert!(!String::from_utf8_lossy(&answer).contains("learner_updates_total"));
+    running.stop().await.unwrap();
+}
+
+fn ca_der(pem: &str) -> Vec<u8> {
+    use rustls::pki_types::pem::PemObject;
+    rustls::pki_types::CertificateDer::from_pem_slice(pem.as_bytes()).unwrap().to_vec()
+}
