@@ -5,7 +5,7 @@
 # Running it again keeps the CA and the token and renews the certificates (rotation).
 #
 #   bash deploy/make-certs.sh deploy/certs
-#   kubectl create secret generic hybrid-drive-tls \
+#   kubectl -n hybrid-drive create secret generic hybrid-drive-tls \
 #     --from-file=deploy/certs/ca.pem --from-file=deploy/certs/server.pem \
 #     --from-file=deploy/certs/server-key.pem --from-file=deploy/certs/client.pem \
 #     --from-file=deploy/certs/client-key.pem --from-file=deploy/certs/token \
@@ -16,7 +16,7 @@
 set -euo pipefail
 dir=${1:-deploy/certs}
 learner=${HD_LEARNER:-target/release/learner}
-hosts=${HD_HOSTS:-learner,learner.default.svc,learner.default.svc.cluster.local,localhost,127.0.0.1}
+hosts=${HD_HOSTS:-learner,learner.hybrid-drive.svc,learner.hybrid-drive.svc.cluster.local,localhost,127.0.0.1}
 "$learner" certs --out "$dir" --hosts "$hosts"
 if [[ ! -s $dir/token ]]; then
   (umask 077 && head -c 32 /dev/urandom | base64 >"$dir/token")
