@@ -5,7 +5,8 @@
 #      are errors), with `kubernetes-validate` from PyPI — installed into a virtual environment
 #      under target/ on first use; it carries its schemas, so it needs no network afterwards;
 #   2. structure: what the deployment relies on (one learner with a persistent volume, the
-#      Service `learner` on 50051, gRPC probes, actors reaching `learner:50051`, the config map
+#      Service `learner` on 50051, probes and actors over mutual TLS with the token from the
+#      Secret `hybrid-drive-tls`, actors reaching `learner:50051`, the config map
 #      mounted where learner-serve reads it, one image for all, non-root);
 #   3. the run configuration in the ConfigMap is accepted by `learner config --config` (with
 #      the learner binary from target/, when one is built).
@@ -87,8 +88,27 @@ check(lc.get("command") == ["learner-serve"], "the learner runs learner-serve (w
 args = lc.get("args", [])
 check("/etc/hybrid-drive/run.toml" in args, "the learner reads /etc/hybrid-drive/run.toml")
 check("0.0.0.0:50051" in args, "the learner listens on 0.0.0.0:50051")
+TLS_DIR = "/etc/hybrid-drive-tls"
+
+def flag(argv, name):
+    return argv[argv.index(name) + 1] if name in argv[:-1] else None
+
+def over_tls(argv):
+    """`learner health` (or the actor) with the CA and a client certificate from the Secret."""
+    return all((flag(argv, f) or "").startswith(TLS_DIR + "/") for f in ("--tls-ca", "--tls-cert", "--tls-key"))
+
+def secret_mounted(spec, container):
+    vols = {v["name"]: v for v in spec.get("volumes", [])}
+    return any(vols.get(m["name"], {}).get("secret", {}).get("secretName") == "hybrid-drive-tls" and m["mountPath"] == TLS_DIR
+               for m in container.get("volumeMounts", []))
+
 for probe in ("readinessProbe", "livenessProbe", "startupProbe"):
-    check(lc.get(probe, {}).get("grpc", {}).get("port") == 50051, f"learner {probe} must be a gRPC probe on 50051")
+    cmd = lc.get(probe, {}).get("exec", {}).get("command", [])
+    check(cmd[:2] == ["learner", "health"] and (flag(cmd, "--addr") or "").endswith(":50051") and over_tls(cmd),
+          f"learner {probe} must run `learner health` on port 50051 over mutual TLS (the kubelet's gRPC probe has no TLS)")
+for f, file in (("--tls-cert", "server.pem"), ("--tls-key", "server-key.pem"), ("--tls-client-ca", "ca.pem"), ("--auth-token-file", "token")):
+    check(flag(args, f) == f"{TLS_DIR}/{file}", f"the learner serves mutual TLS with the token: {f} {TLS_DIR}/{file}")
+check(secret_mounted(lpod, lc), f"the learner mounts the Secret hybrid-drive-tls at {TLS_DIR}")
 check(lpod.get("terminationGracePeriodSeconds", 30) >= 30, "the learner needs time for its final checkpoint")
 
 dspec = dep.get("spec", {})
@@ -100,6 +120,9 @@ check(ac.get("command") == ["actor"] and "--learner" in aargs and aargs[aargs.in
       "actors must run `actor --learner learner:50051`")
 for probe in ("readinessProbe", "livenessProbe"):
     check(probe in ac, f"actor {probe}")
+    check(over_tls(ac.get(probe, {}).get("exec", {}).get("command", [])), f"actor {probe} over mutual TLS")
+check(over_tls(aargs) and flag(aargs, "--auth-token-file") == f"{TLS_DIR}/token", "actors connect over mutual TLS with the token")
+check(secret_mounted(pod(dep).get("spec", {}), ac), f"actors mount the Secret hybrid-drive-tls at {TLS_DIR}")
 check(lc.get("image") == ac.get("image"), "learner and actors run the same image")
 for name, spec in (("learner", lpod), ("actor", pod(dep).get("spec", {}))):
     check(spec.get("securityContext", {}).get("runAsNonRoot") is True, f"{name} runs as non-root")

@@ -6,6 +6,7 @@
 mod support;
 
 use std::path::Path;
+use std::process::Command;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
@@ -201,4 +202,22 @@ async fn an_actor_registers_again_as_soon_as_a_restarted_learner_answers() {
     }
     a.kill9();
     second.stop().await.unwrap();
+}
+
+/// A token is never sent in clear to an address that is not loopback: the actor stops before
+/// connecting, naming the flag that would allow it (192.0.2.1, TEST-NET-1, answers nothing: a
+/// connection attempt would be retried for ever instead).
+#[test]
+fn an_actor_refuses_to_send_its_token_in_clear_off_loopback() {
+    let dir = tempfile::tempdir().unwrap();
+    let token = dir.path().join("token");
+    std::fs::write(&token, "s3cret\n").unwrap();
+    let out =
+        Command::new(env!("CARGO_BIN_EXE_actor")).args(["--learner", "192.0.2.1:50051", "--auth-token-file"]).arg(&token).output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{stderr}");
+    assert!(
+        stderr.contains("refusing to send the auth token in clear to 192.0.2.1") && stderr.contains("--insecure-plaintext"),
+        "{stderr}"
+    );
 }

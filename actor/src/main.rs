@@ -32,7 +32,8 @@ use clap::{Parser, Subcommand};
 struct Cli {
     #[command(subcommand)]
     command: Option<Command>,
-    /// Learner to serve, host:port or http://host:port: run as an actor.
+    /// Learner to serve, host:port, http://host:port or https://host:port (TLS, with --tls-ca):
+    /// run as an actor.
     #[arg(long)]
     learner: Option<String>,
     /// Environments this actor runs (one batched inference for all).
@@ -41,9 +42,10 @@ struct Cli {
     /// A name for this actor (it keeps its index, and so its exploration rate, across reconnects).
     #[arg(long)]
     id: Option<String>,
-    /// Token file, if the learner requires one.
-    #[arg(long)]
-    auth_token_file: Option<std::path::PathBuf>,
+    #[command(flatten)]
+    auth: proto::cli::AuthArgs,
+    #[command(flatten)]
+    tls: proto::cli::TlsArgs,
     /// Steps per batch sent to the learner.
     #[arg(long, default_value_t = 64)]
     batch_steps: usize,
@@ -107,10 +109,10 @@ fn main() -> Result<()> {
             };
             let name = cli.id.unwrap_or_else(|| format!("{}-{}", hostname(), std::process::id()));
             let opts = run::ActorOptions {
-                learner,
+                learner: proto::client::Target::new(&learner, cli.tls.files(), cli.auth.insecure_plaintext)?,
                 envs: cli.envs,
                 name,
-                auth_token_file: cli.auth_token_file,
+                auth_token_file: cli.auth.auth_token_file,
                 batch_steps: cli.batch_steps.max(1),
                 buffer_steps: cli.buffer_steps.max(1),
                 seed: cli.seed,

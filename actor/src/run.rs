@@ -20,7 +20,8 @@ use std::time::{Duration, Instant};
 use agent::NetShape;
 use agent::config::{AgentConfig, RunConfig};
 use anyhow::{Context, Result};
-use proto::client::{ACTOR_ID_HEADER, Client, connect};
+// `connect_to`: plaintext or TLS, as `opts.learner` says (and never a token in clear off loopback).
+use proto::client::{ACTOR_ID_HEADER, Client, connect_to as connect};
 use proto::v1 as pb;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -36,7 +37,8 @@ pub const FLUSH_DEADLINE: Duration = Duration::from_secs(5);
 /// Options of an actor process.
 #[derive(Debug, Clone)]
 pub struct ActorOptions {
-    pub learner: String,
+    /// The learner: its address, plaintext or TLS (`--learner`, `--tls-ca`, ...).
+    pub learner: proto::client::Target,
     pub envs: usize,
     pub name: String,
     pub auth_token_file: Option<PathBuf>,
@@ -127,6 +129,10 @@ pub async fn run(opts: ActorOptions) -> Result<()> {
         anyhow::bail!("--envs {} must be 1..=1024", opts.envs);
     }
     let token = opts.auth_token_file.as_deref().map(proto::client::read_token).transpose()?;
+    if token.is_some() {
+        // Refused once, before any connection, rather than at every retry.
+        opts.learner.check_token_safety().await?;
+    }
     let link = Arc::new(Link {
         outbox: Mutex::new(Outbox::default()),
         fresh_weights: Mutex::new(None),

@@ -159,6 +159,14 @@ pub struct ServiceConfig {
     /// Bytes per replay log segment (default 64 MiB); segments whose transitions have all left
     /// the replay are deleted, so the log holds about the replay's bytes plus one segment.
     pub replay_log_segment_bytes: u64,
+    /// PEM certificate the learner serves TLS with (default empty: plaintext); with `tls_key`.
+    /// Re-read on SIGHUP and when it changes.
+    pub tls_cert: String,
+    /// PEM private key of `tls_cert` (default empty).
+    pub tls_key: String,
+    /// PEM CA certificate(s) clients' certificates must chain to: mutual TLS (default empty:
+    /// clients need no certificate). Needs `tls_cert`.
+    pub tls_client_ca: String,
 }
 
 /// What an acknowledgement promises (`service.durability`).
@@ -194,6 +202,9 @@ impl Default for ServiceConfig {
             stats_window: 100,
             durability: Durability::Ack,
             replay_log_segment_bytes: 64 << 20,
+            tls_cert: String::new(),
+            tls_key: String::new(),
+            tls_client_ca: String::new(),
         }
     }
 }
@@ -334,6 +345,13 @@ impl RunConfig {
         }
         if s.stats_window == 0 {
             return Err(("service.stats_window".into(), "must be at least 1".into()));
+        }
+        if s.tls_cert.is_empty() != s.tls_key.is_empty() {
+            let missing = if s.tls_cert.is_empty() { "service.tls_cert" } else { "service.tls_key" };
+            return Err((missing.into(), "TLS needs both tls_cert and tls_key (--tls-cert and --tls-key)".into()));
+        }
+        if !s.tls_client_ca.is_empty() && s.tls_cert.is_empty() {
+            return Err(("service.tls_client_ca".into(), "mutual TLS needs the server's own tls_cert and tls_key too".into()));
         }
         if self.env.camera.is_none() {
             return Err(("env.camera".into(), "the agent drives from the camera: a camera must be configured".into()));

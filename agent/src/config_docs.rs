@@ -131,6 +131,15 @@ pub const FIELD_DOCS: &[(&str, &str)] = &[
         "Bytes per replay log segment (default 64 MiB); segments whose transitions have all left the replay are deleted.",
     ),
     (
+        "service.tls_cert",
+        "PEM certificate the learner serves TLS with, gRPC and metrics (default empty: plaintext); with tls_key; re-read on SIGHUP and when it changes (--tls-cert).",
+    ),
+    ("service.tls_key", "PEM private key of tls_cert (default empty; --tls-key)."),
+    (
+        "service.tls_client_ca",
+        "PEM CA that clients' certificates must be signed by: mutual TLS (default empty: no client certificate needed; needs tls_cert; --tls-client-ca).",
+    ),
+    (
         "preset",
         "A named preset the file starts from (`paper`, `end-to-end`, `hybrid-tuned`, `end-to-end-tuned`); the file's other values override it, table by table.",
     ),

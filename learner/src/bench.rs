@@ -225,12 +225,12 @@ fn candle_step(shape: &NetShape, params: &Params, b: &Batch) -> candle_core::Res
 /// and `by_durability` has each (`none` is the learner before the replay log; `ack` acknowledges a
 /// batch once it is synced to disk), with, for `ack`, the replay log's size and the time a
 /// `--resume` took to rebuild the replay from it (`resume_secs`).
-pub async fn ingest(seconds: f64, modes: &[Durability]) -> Result<serde_json::Value> {
+pub async fn ingest(seconds: f64, modes: &[Durability], tls: bool) -> Result<serde_json::Value> {
     let load_before = load_average();
     let mut by = serde_json::Map::new();
     let mut last = 0.0;
     for &mode in modes {
-        let m = ingest_one(seconds, mode).await?;
+        let m = ingest_one(seconds, mode, tls).await?;
         last = m.transitions_per_sec;
         tracing::info!(durability = mode.name(), transitions_per_sec = last, "ingestion measured");
         by.insert(mode.name().into(), serde_json::json!(last));
@@ -243,6 +243,7 @@ pub async fn ingest(seconds: f64, modes: &[Durability]) -> Result<serde_json::Va
     Ok(serde_json::json!({
         "transitions_per_sec": last,
         "by_durability": by,
+        "tls": tls,
         "load_before": load_before,
         "load_after": load_average(),
     }))
@@ -266,8 +267,10 @@ pub struct Resumed {
 /// Streams batches of 64 transitions of 84×84 gray frames to an in-process learner on loopback for
 /// `seconds` and counts the transitions acknowledged per second. Training is held off (the replay
 /// never reaches its minimum) so that only ingestion is measured. The run directory is under the
-/// system's temporary directory: with `durability = "ack"`, its disk is what is measured.
-pub async fn ingest_one(seconds: f64, durability: Durability) -> Result<Ingested> {
+/// system's temporary directory: with `durability = "ack"`, its disk is what is measured. With
+/// `tls`, the learner serves mutual TLS with certificates made in that directory
+/// (`crate::certs`), and the client presents one.
+pub async fn ingest_one(seconds: f64, durability: Durability, tls: bool) -> Result<Ingested> {
     let dir = std::env::temp_dir().join(format!("learner-bench-ingest-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     let mut cfg = RunConfig::default();
@@ -277,10 +280,24 @@ pub async fn ingest_one(seconds: f64, durability: Durability) -> Result<Ingested
     cfg.service.listen = "127.0.0.1:0".into();
     cfg.service.run_dir = dir.display().to_string();
     cfg.service.checkpoint_interval_secs = 3600;
+    let target = if tls {
+        let certs = dir.join("certs");
+        crate::certs::write_set(&certs, &["127.0.0.1".to_owned()], 1)?;
+        cfg.service.tls_cert = certs.join(crate::certs::SERVER_CERT).display().to_string();
+        cfg.service.tls_key = certs.join(crate::certs::SERVER_KEY).display().to_string();
+        cfg.service.tls_client_ca = certs.join(crate::certs::CA_CERT).display().to_string();
+        Some(proto::client::TlsFiles {
+            ca: certs.join(crate::certs::CA_CERT),
+            identity: Some((certs.join(crate::certs::CLIENT_CERT), certs.join(crate::certs::CLIENT_KEY))),
+        })
+    } else {
+        None
+    };
     let cfg_path = dir.with_extension("toml");
     std::fs::write(&cfg_path, cfg.to_toml())?;
     let running = start(ServeOptions { config: Some(cfg_path.clone()), ..ServeOptions::default() }).await?;
-    let mut client = proto::client::connect(&running.addr.to_string(), None).await?;
+    let target = proto::client::Target::new(&running.addr.to_string(), target, false)?;
+    let mut client = proto::client::connect_to(&target, None).await?;
     let reg = client.register(pb::RegisterRequest { name: "bench".into(), envs: 1, protocol: proto::v1::PROTOCOL }).await?.into_inner();
     let frame = vec![100u8; 84 * 84];
     let actor_id = reg.actor_id.clone();

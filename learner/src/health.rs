@@ -1,29 +1,26 @@
 //! `learner health`: asks a learner's standard `grpc.health.v1.Health/Check` and succeeds only
 //! when the answer is `SERVING`. Container health checks (`deploy/docker-compose.yml`) use it;
-//! it needs no token (the health service is outside the authenticated learner service).
+//! it needs no token (the health service is outside the authenticated learner service), and
+//! speaks TLS with `--tls-ca` (and mutual TLS with `--tls-cert`/`--tls-key`), like every client.
 
 use std::time::Duration;
 
-use anyhow::{Context, Result, bail};
-use tonic::transport::Endpoint;
+use anyhow::{Result, bail};
+use proto::client::Target;
 use tonic_health::pb::HealthCheckRequest;
 use tonic_health::pb::health_check_response::ServingStatus;
 use tonic_health::pb::health_client::HealthClient;
 
-/// Checks `service` (empty: the server as a whole) at `addr` (`host:port` or `http://host:port`),
-/// giving up after `timeout` for the connection and again for the call.
-pub async fn check(addr: &str, service: &str, timeout: Duration) -> Result<()> {
-    let url = if addr.starts_with("http://") || addr.starts_with("https://") { addr.to_owned() } else { format!("http://{addr}") };
-    let channel = Endpoint::from_shared(url.clone())
-        .with_context(|| format!("`{addr}` is not a valid address (expected host:port)"))?
-        .connect_timeout(timeout)
-        .timeout(timeout)
-        .connect()
+/// Checks `service` (empty: the server as a whole) at `target` (plaintext or TLS), giving up after
+/// `timeout` for the connection and again for the call.
+pub async fn check(target: &Target, service: &str, timeout: Duration) -> Result<()> {
+    let url = &target.url;
+    let channel = proto::client::open(target, timeout).await?;
+    let mut client = HealthClient::new(channel);
+    let call = client.check(HealthCheckRequest { service: service.to_owned() });
+    let reply = tokio::time::timeout(timeout, call)
         .await
-        .with_context(|| format!("connecting to {url}"))?;
-    let reply = HealthClient::new(channel)
-        .check(HealthCheckRequest { service: service.to_owned() })
-        .await
+        .map_err(|_| anyhow::anyhow!("grpc.health.v1 Check at {url}: no answer within {} s", timeout.as_secs_f64()))?
         .map_err(|s| anyhow::anyhow!("grpc.health.v1 Check at {url}: {:?}: {}", s.code(), s.message()))?
         .into_inner();
     let status = ServingStatus::try_from(reply.status).unwrap_or(ServingStatus::Unknown);

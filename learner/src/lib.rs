@@ -4,6 +4,8 @@
 
 pub mod auth;
 pub mod bench;
+pub mod bounds;
+pub mod certs;
 pub mod checkpoint;
 pub mod dqn;
 pub mod metrics_log;
@@ -20,6 +22,7 @@ pub mod state;
 pub mod status;
 pub mod sum_tree;
 pub mod tfevents;
+pub mod tls;
 pub mod train;
 pub mod validate;
 pub mod versions;

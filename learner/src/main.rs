@@ -39,12 +39,39 @@ enum Command {
         /// RUN_DIR/replay-log.damaged/ (without it, such a log is refused with what it would drop).
         #[arg(long, requires = "resume")]
         truncate_log: bool,
-        /// Serve Prometheus metrics over HTTP at this address, host:port.
+        /// Serve Prometheus metrics at this address, host:port (a bare PORT is 127.0.0.1:PORT);
+        /// over TLS, with the same certificates, when TLS is on.
         #[arg(long)]
         metrics_listen: Option<String>,
         /// Require this shared token (first line of the file) from every client.
         #[arg(long)]
         auth_token_file: Option<PathBuf>,
+        /// Serve TLS with this PEM certificate (with --tls-key; overrides service.tls_cert). Re-read
+        /// on SIGHUP and when it changes.
+        #[arg(long, value_name = "FILE", requires = "tls_key")]
+        tls_cert: Option<PathBuf>,
+        /// The PEM private key of --tls-cert (overrides service.tls_key).
+        #[arg(long, value_name = "FILE", requires = "tls_cert")]
+        tls_key: Option<PathBuf>,
+        /// Mutual TLS: clients must present a certificate signed by this PEM CA (overrides
+        /// service.tls_client_ca).
+        #[arg(long, value_name = "FILE")]
+        tls_client_ca: Option<PathBuf>,
+    },
+    /// Write certificates for TLS and mutual TLS into DIR: a CA (ca.pem, ca-key.pem; kept when
+    /// DIR has one, so running it again renews the others under the same CA), a server
+    /// certificate for --hosts (server.pem, server-key.pem) and a client certificate (client.pem,
+    /// client-key.pem). Keys are written with mode 0600.
+    Certs {
+        /// Directory to write into (created if missing).
+        #[arg(long, value_name = "DIR")]
+        out: PathBuf,
+        /// Host names and IP addresses the server certificate is valid for, comma-separated.
+        #[arg(long, value_delimiter = ',', default_value = "localhost,127.0.0.1")]
+        hosts: Vec<String>,
+        /// Days the server and client certificates are valid (the CA: 10 years).
+        #[arg(long, default_value_t = 365)]
+        days: i64,
     },
     /// Print a learner's status: give its address, or the run directory of a learner on this
     /// machine (`learner serve --run-dir DIR` or `actor train --run-dir DIR`, which write the
@@ -60,9 +87,10 @@ enum Command {
         /// Print one JSON object on the last line of stdout.
         #[arg(long)]
         json: bool,
-        /// Token file, if the learner requires one.
-        #[arg(long)]
-        auth_token_file: Option<PathBuf>,
+        #[command(flatten)]
+        auth: proto::cli::AuthArgs,
+        #[command(flatten)]
+        tls: proto::cli::TlsArgs,
     },
     /// Check a learner through the standard gRPC health service (grpc.health.v1): exit 0 only when
     /// it reports SERVING. For container health checks; needs no token.
@@ -76,6 +104,8 @@ enum Command {
         /// Seconds to wait for the connection, and again for the answer.
         #[arg(long, default_value_t = 3.0)]
         timeout: f64,
+        #[command(flatten)]
+        tls: proto::cli::TlsArgs,
     },
     /// Draw learning curves of run directories into a PNG, panels stacked on one x axis: the
     /// smoothed episode return, the loss, the mean Q and (with `eval.jsonl`) the periodic greedy
@@ -185,6 +215,9 @@ enum BenchCommand {
         /// `ack`, `none`, or `both` (none, then ack, in the same run: the cost of durability).
         #[arg(long, default_value = "ack")]
         durability: String,
+        /// Serve and stream over mutual TLS (certificates made for the run): the cost of TLS.
+        #[arg(long)]
+        tls: bool,
         /// Print one JSON object on the last line of stdout.
         #[arg(long)]
         json: bool,
@@ -250,17 +283,43 @@ fn main() -> Result<()> {
     let rt = tokio::runtime::Builder::new_multi_thread().worker_threads(2).enable_all().build()?;
     rt.block_on(async move {
         match cli.command {
-            Command::Serve { config, listen, run_dir, resume, truncate_log, metrics_listen, auth_token_file } => {
-                serve(ServeOptions { config, listen, run_dir, resume, truncate_log, metrics_listen, auth_token_file }).await
+            Command::Serve { config, listen, run_dir, resume, truncate_log, metrics_listen, auth_token_file, tls_cert, tls_key, tls_client_ca } => {
+                serve(ServeOptions {
+                    config,
+                    listen,
+                    run_dir,
+                    resume,
+                    truncate_log,
+                    metrics_listen,
+                    auth_token_file,
+                    tls_cert,
+                    tls_key,
+                    tls_client_ca,
+                })
+                .await
             }
-            Command::Status { addr, run_dir, json, auth_token_file } => {
-                let token = auth_token_file.as_deref().map(proto::client::read_token).transpose()?;
+            Command::Certs { out, hosts, days } => {
+                for path in learner::certs::write_set(&out, &hosts, days)? {
+                    println!("wrote {}", path.display());
+                }
+                println!(
+                    "serve: learner serve --tls-cert {dir}/server.pem --tls-key {dir}/server-key.pem --tls-client-ca {dir}/ca.pem",
+                    dir = out.display()
+                );
+                println!(
+                    "connect: actor --learner https://HOST:PORT --tls-ca {dir}/ca.pem --tls-cert {dir}/client.pem --tls-key {dir}/client-key.pem",
+                    dir = out.display()
+                );
+                Ok(())
+            }
+            Command::Status { addr, run_dir, json, auth, tls } => {
                 let (addr, from) = match (addr, run_dir) {
                     (Some(addr), _) => (addr, None),
                     (None, Some(dir)) => (status::addr_from_run_dir(&dir)?, Some(dir)),
                     (None, None) => unreachable!("clap requires --addr or --run-dir"),
                 };
-                let mut client = match proto::client::connect(&addr, token).await {
+                let (target, token) = auth.target(&addr, &tls).await?;
+                let mut client = match proto::client::connect_to(&target, token).await {
                     Ok(c) => c,
                     Err(e) => match from {
                         Some(dir) => {
@@ -284,11 +343,11 @@ fn main() -> Result<()> {
                 }
                 Ok(())
             }
-            Command::Health { addr, service, timeout } => {
+            Command::Health { addr, service, timeout, tls } => {
                 if !(timeout > 0.0 && timeout.is_finite()) {
                     anyhow::bail!("--timeout must be a positive number of seconds, not {timeout}");
                 }
-                health::check(&addr, &service, std::time::Duration::from_secs_f64(timeout)).await?;
+                health::check(&tls.target(&addr)?, &service, std::time::Duration::from_secs_f64(timeout)).await?;
                 println!("SERVING");
                 Ok(())
             }
@@ -335,7 +394,7 @@ fn main() -> Result<()> {
                 print_result(&v, json);
                 Ok(())
             }
-            Command::Bench(BenchCommand::Ingest { seconds, durability, json }) => {
+            Command::Bench(BenchCommand::Ingest { seconds, durability, tls, json }) => {
                 if !(seconds > 0.0 && seconds.is_finite()) {
                     anyhow::bail!("--seconds must be a positive number, not {seconds}");
                 }
@@ -344,7 +403,7 @@ fn main() -> Result<()> {
                     "both" => vec![Durability::None, Durability::Ack],
                     other => vec![parse_durability(other).map_err(anyhow::Error::msg)?],
                 };
-                let v = learner::bench::ingest(seconds, &modes).await?;
+                let v = learner::bench::ingest(seconds, &modes, tls).await?;
                 print_result(&v, json);
                 Ok(())
             }

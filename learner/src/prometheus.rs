@@ -119,8 +119,12 @@ pub fn prometheus_text(registry: &Registry) -> String {
     out
 }
 
-/// Serves `/metrics` over HTTP on `listener` until the process ends.
-pub async fn serve_prometheus(listener: tokio::net::TcpListener, shared: Arc<Shared>) {
+/// Serves `/metrics` over HTTP on `listener` (TCP, or TLS connections) until the process ends.
+pub async fn serve_prometheus<L>(listener: L, shared: Arc<Shared>)
+where
+    L: axum::serve::Listener,
+    L::Addr: std::fmt::Debug,
+{
     let registry = Arc::new(registry(shared));
     let metrics = move || {
         let registry = registry.clone();

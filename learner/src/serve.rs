@@ -28,6 +28,7 @@ use crate::replay::{Replay, ReplayConfig};
 use crate::run_lock::RunLock;
 use crate::service::LearnerService;
 use crate::state::{PublishedWeights, Shared, TrainStats};
+use crate::tls::{Alpn, ServerTls, ServerTlsFiles};
 use crate::versions::VersionLease;
 use crate::wal::{OnDamage, ReplayLog};
 use agent::checkpoint::Counters;
@@ -44,10 +45,17 @@ pub struct ServeOptions {
     pub truncate_log: bool,
     pub metrics_listen: Option<String>,
     pub auth_token_file: Option<PathBuf>,
+    /// TLS: override `service.tls_cert`, `service.tls_key`, `service.tls_client_ca`.
+    pub tls_cert: Option<PathBuf>,
+    pub tls_key: Option<PathBuf>,
+    pub tls_client_ca: Option<PathBuf>,
 }
 
-/// Resolves `host:port` or `http://host:port` to a socket address.
+/// Resolves `host:port` or `http://host:port` to a socket address; a bare port is loopback's.
 pub async fn resolve(addr: &str) -> Result<SocketAddr> {
+    if let Ok(port) = addr.parse::<u16>() {
+        return Ok(SocketAddr::from(([127, 0, 0, 1], port)));
+    }
     let bare = addr.trim_start_matches("http://").trim_start_matches("https://").trim_end_matches('/');
     tokio::net::lookup_host(bare)
         .await
@@ -59,7 +67,8 @@ pub async fn resolve(addr: &str) -> Result<SocketAddr> {
 /// Runs the service until SIGINT or SIGTERM, then stops it cleanly.
 pub async fn serve(opts: ServeOptions) -> Result<()> {
     let running = start(opts).await?;
-    eprintln!("learner listening on {} (run {} in {})", running.addr, running.shared.run_id, running.run_dir.display());
+    let scheme = if running.tls.is_some() { "https" } else { "http" };
+    eprintln!("learner listening on {scheme}://{} (run {} in {})", running.addr, running.shared.run_id, running.run_dir.display());
     eprintln!("status, from another terminal: learner status --run-dir {}", running.run_dir.display());
     let reporter = Arc::new(crate::progress::Reporter::stderr());
     let progress = tokio::spawn(progress_loop(running.shared.clone(), reporter.clone(), Duration::from_secs(10)));
@@ -95,6 +104,8 @@ pub struct Running {
     pub addr: SocketAddr,
     pub run_dir: PathBuf,
     pub shared: Arc<Shared>,
+    /// The server's TLS, when it serves TLS (reloaded on SIGHUP and when its files change).
+    pub tls: Option<Arc<ServerTls>>,
     stop_server: tokio::sync::oneshot::Sender<()>,
     server: tokio::task::JoinHandle<Result<(), tonic::transport::Error>>,
     trainer: std::thread::JoinHandle<Result<Dqn>>,
@@ -175,8 +186,18 @@ async fn start_with(opts: ServeOptions, train: Trainer) -> Result<Running> {
     if let Some(l) = &opts.listen {
         cfg.service.listen = l.clone();
     }
+    for (flag, field) in [
+        (&opts.tls_cert, &mut cfg.service.tls_cert),
+        (&opts.tls_key, &mut cfg.service.tls_key),
+        (&opts.tls_client_ca, &mut cfg.service.tls_client_ca),
+    ] {
+        if let Some(path) = flag {
+            *field = path.display().to_string();
+        }
+    }
     cfg.validate().map_err(|(field, message)| anyhow::anyhow!("config field `{field}`: {message}"))?;
     let token = opts.auth_token_file.as_deref().map(proto::client::read_token).transpose()?;
+    let tls = server_tls(&cfg.service)?;
 
     let shape = cfg.net_shape();
     let mut dqn = Dqn::new(shape, &cfg.agent);
@@ -257,9 +278,20 @@ async fn start_with(opts: ServeOptions, train: Trainer) -> Result<Running> {
     if let Some(m) = &opts.metrics_listen {
         let addr = resolve(m).await?;
         let listener = tokio::net::TcpListener::bind(addr).await.with_context(|| format!("binding metrics address {addr}"))?;
-        std::fs::write(run_dir.join("metrics.addr"), listener.local_addr()?.to_string())?;
-        tracing::info!(addr = %listener.local_addr()?, "Prometheus metrics at http://{}/metrics", listener.local_addr()?);
-        tokio::spawn(serve_prometheus(listener, shared.clone()));
+        let local = listener.local_addr()?;
+        std::fs::write(run_dir.join("metrics.addr"), local.to_string())?;
+        warn_if_in_clear("the metrics endpoint (--metrics-listen)", local, tls.is_some());
+        match &tls {
+            Some(t) => {
+                tracing::info!(addr = %local, "Prometheus metrics at https://{local}/metrics");
+                let connections = crate::tls::accept_tls(listener, t.clone(), Alpn::Http1);
+                tokio::spawn(serve_prometheus(crate::tls::TlsListener { connections, local }, shared.clone()));
+            }
+            None => {
+                tracing::info!(addr = %local, "Prometheus metrics at http://{local}/metrics");
+                tokio::spawn(serve_prometheus(listener, shared.clone()));
+            }
+        }
     }
 
     // gRPC.
@@ -290,8 +322,8 @@ async fn start_with(opts: ServeOptions, train: Trainer) -> Result<Running> {
             }
         });
     }
-    tracing::info!(addr = %bound, run_dir = %run_dir.display(), run_id = %shared.run_id, "learner listening");
-    let incoming = tokio_stream::wrappers::TcpListenerStream::new(listener);
+    tracing::info!(addr = %bound, tls = tls.is_some(), mutual_tls = tls.as_ref().is_some_and(|t| t.mutual()), run_dir = %run_dir.display(), run_id = %shared.run_id, "learner listening");
+    warn_if_in_clear("the gRPC service (--listen)", bound, tls.is_some());
     let (stop_server, stopped) = tokio::sync::oneshot::channel::<()>();
     // Batches of frames are large: HTTP/2's default 64 KiB flow-control window would stall each
     // one on window updates.
@@ -315,10 +347,45 @@ async fn start_with(opts: ServeOptions, train: Trainer) -> Result<Running> {
         };
         router.add_service(reflection().build_v1()?).add_service(reflection().build_v1alpha()?)
     };
-    let server = tokio::spawn(router.serve_with_incoming_shutdown(incoming, async move {
+    let stopped = async move {
         let _ = stopped.await;
-    }));
-    Ok(Running { addr: bound, run_dir, shared, stop_server, server, trainer, _lock: lock })
+    };
+    // Health and reflection share the listener, and so its TLS.
+    let server = match &tls {
+        Some(t) => {
+            use tokio_stream::StreamExt;
+            tokio::spawn(crate::tls::watch_and_reload(t.clone()));
+            let connections = crate::tls::accept_tls(listener, t.clone(), Alpn::Grpc);
+            let incoming = tokio_stream::wrappers::ReceiverStream::new(connections).map(|(stream, _)| Ok::<_, std::io::Error>(stream));
+            tokio::spawn(router.serve_with_incoming_shutdown(incoming, stopped))
+        }
+        None => tokio::spawn(router.serve_with_incoming_shutdown(tokio_stream::wrappers::TcpListenerStream::new(listener), stopped)),
+    };
+    Ok(Running { addr: bound, run_dir, shared, tls, stop_server, server, trainer, _lock: lock })
+}
+
+/// The server's TLS from `[service]` (after the flags), or `None` for plaintext.
+fn server_tls(s: &agent::config::ServiceConfig) -> Result<Option<Arc<ServerTls>>> {
+    if s.tls_cert.is_empty() {
+        return Ok(None);
+    }
+    let files = ServerTlsFiles {
+        cert: s.tls_cert.clone().into(),
+        key: s.tls_key.clone().into(),
+        client_ca: (!s.tls_client_ca.is_empty()).then(|| s.tls_client_ca.clone().into()),
+    };
+    Ok(Some(ServerTls::load(files)?))
+}
+
+/// One WARN when `what` listens beyond loopback in clear.
+fn warn_if_in_clear(what: &str, addr: SocketAddr, tls: bool) {
+    if !tls && !addr.ip().is_loopback() {
+        tracing::warn!(
+            %addr,
+            "{what} listens on a non-loopback address without TLS: tokens, experience and weights cross the network in clear; \
+             serve TLS with --tls-cert FILE --tls-key FILE (and --tls-client-ca FILE for mutual TLS; `learner certs` makes them)"
+        );
+    }
 }
 
 /// Runs training, turning its end other than by a requested stop (an error or a panic) into a

@@ -296,6 +296,7 @@ fn expect(shared: &Shared) -> Expect {
         channels: shared.shape.channels,
         actions: shared.shape.actions as u32,
         path_features: shared.cfg.agent.path_features,
+        bounds: crate::bounds::Bounds::of(&shared.cfg.env),
     }
 }
 

@@ -1,10 +1,11 @@
 //! Checking a batch whole before anything of it is stored: its shape against the run (image
-//! size, actions, path features, finite numbers), and its place in the actor's stream (a known
+//! size, actions, path features, finite numbers within the run's physical bounds, `bounds.rs`), and its place in the actor's stream (a known
 //! environment, `seq` increasing, each environment's steps moving forward, not empty).
 
 use proto::v1 as pb;
 use sim_core::env::PATH_FEATURES;
 
+use crate::bounds::Bounds;
 use crate::state::ActorRecord;
 
 /// Most steps one batch may carry.
@@ -19,6 +20,7 @@ pub struct Expect {
     pub channels: usize,
     pub actions: u32,
     pub path_features: bool,
+    pub bounds: Bounds,
 }
 
 /// Why a batch was refused.
@@ -95,6 +97,9 @@ pub fn check(x: &Expect, actor: &ActorRecord, b: &pb::ExperienceBatch) -> Result
                 return invalid(format!("step {i}: {name} is {v}, not a finite number"));
             }
         }
+        if let Some(m) = beyond_bounds(&x.bounds, s, obs) {
+            return invalid(format!("step {i}: {m}"));
+        }
         if s.terminated && s.truncated {
             return invalid(format!("step {i}: terminated and truncated at once"));
         }
@@ -103,11 +108,54 @@ pub fn check(x: &Expect, actor: &ActorRecord, b: &pb::ExperienceBatch) -> Result
         if !e.episode_return.is_finite() {
             return invalid(format!("episode summary {i}: return is {}, not a finite number", e.episode_return));
         }
+        if e.episode_return.abs() > x.bounds.episode_return {
+            return invalid(format!(
+                "episode summary {i}: return {} is beyond what this run's reward can add up to in an episode (|return| <= {})",
+                e.episode_return, x.bounds.episode_return
+            ));
+        }
     }
     if !(b.epsilon.is_finite() && (0.0..=1.0).contains(&b.epsilon)) {
         return invalid(format!("epsilon {} is outside [0, 1]", b.epsilon));
     }
     Ok(positions)
+}
+
+/// Which number of a step, if any, is beyond the run's physical bounds, and by what bound.
+fn beyond_bounds(b: &Bounds, s: &pb::Step, obs: &pb::Observation) -> Option<String> {
+    if obs.speed.abs() > b.speed {
+        return Some(format!(
+            "speed {} m/s is beyond what the vehicle can reach (|speed| <= {} m/s: 2 x env.vehicle.max_speed + 1)",
+            obs.speed, b.speed
+        ));
+    }
+    if obs.d.abs() > b.distance {
+        return Some(format!(
+            "d {} m is beyond how far the vehicle can get from its route (|d| <= {} m: 2 x (the longest route + an episode at top speed) + 1)",
+            obs.d, b.distance
+        ));
+    }
+    if let Some(&lateral) = obs.path.first()
+        && lateral.abs() > b.distance
+    {
+        return Some(format!(
+            "path feature 0 (lateral offset) {lateral} m is beyond how far the vehicle can get from its route (|x| <= {} m)",
+            b.distance
+        ));
+    }
+    for (k, &a) in obs.path.iter().enumerate().skip(1) {
+        if a.abs() > b.angle {
+            return Some(format!("path feature {k} (an angle) {a} rad is beyond ±π (|x| <= {} rad)", b.angle));
+        }
+    }
+    let (lo, hi) = b.reward;
+    if !(lo..=hi).contains(&s.reward) {
+        return Some(format!(
+            "reward {} is beyond what this run's reward (env.reward, with its clip) can produce ([{lo}, {hi}] with margin)",
+            s.reward
+        ));
+    }
+    None
 }
 
 /// Records an accepted batch's place in the actor's stream.
@@ -121,7 +169,15 @@ mod tests {
     use super::*;
 
     fn expect() -> Expect {
-        Expect { frame_bytes: 4, width: 2, height: 2, channels: 1, actions: 6, path_features: false }
+        Expect {
+            frame_bytes: 4,
+            width: 2,
+            height: 2,
+            channels: 1,
+            actions: 6,
+            path_features: false,
+            bounds: Bounds::of(&sim_core::config::EnvConfig::default()),
+        }
     }
 
     fn step(env: u32, episode: u64, t: u32) -> pb::Step {
@@ -174,5 +230,28 @@ mod tests {
         // is accepted.
         assert_eq!(a.last_seq, Some(5));
         check(&expect(), &a, &batch(9, vec![step(0, 1, 0), step(1, 0, 7)])).unwrap();
+    }
+
+    #[test]
+    fn physically_impossible_numbers_are_refused_naming_the_bound() {
+        let a = ActorRecord::new("x".into(), "n".into(), 0, 1);
+        let with = |f: &dyn Fn(&mut pb::Step)| {
+            let mut s = step(0, 0, 1);
+            f(&mut s);
+            refused(check(&expect(), &a, &batch(1, vec![s])))
+        };
+        let m = with(&|s| s.obs.as_mut().unwrap().speed = 1e30);
+        assert!(m.contains("speed 1000000000000000000000000000000 m/s is beyond") && m.contains("<= 61 m/s"), "{m}");
+        let m = with(&|s| s.obs.as_mut().unwrap().d = -1e30);
+        assert!(m.contains("d -1000000000000000000000000000000 m is beyond") && m.contains("<= 2101 m"), "{m}");
+        let m = with(&|s| s.reward = 3e38);
+        assert!(m.contains("reward 300000000000000000000000000000000000000 is beyond") && m.contains("201]"), "{m}");
+        let m = with(&|s| s.obs.as_mut().unwrap().path = vec![0.0, 7.0, 0.0]);
+        assert!(m.contains("path feature 1 (an angle) 7 rad"), "{m}");
+        // The largest real values pass: top speed, arrival's reward.
+        let mut s = step(0, 0, 1);
+        s.obs.as_mut().unwrap().speed = 30.0;
+        s.reward = 100.0;
+        check(&expect(), &a, &batch(1, vec![s])).unwrap();
     }
 }

@@ -1,0 +1,128 @@
+//! Telling connection failures apart: a transport error's chain (tonic → hyper → h2 → io →
+//! rustls) turned into one sentence that says what went wrong and what to change — the wrong CA,
+//! an expired or not-yet-valid certificate, a hostname mismatch, plaintext against TLS or the
+//! reverse, a client certificate the learner wants or refuses.
+
+use std::error::Error;
+
+use rustls::{AlertDescription, CertificateError};
+
+/// What a client was doing when it failed.
+#[derive(Debug, Clone, Copy)]
+pub struct Attempt<'a> {
+    /// It spoke TLS (else plaintext).
+    pub tls: bool,
+    /// It presented a client certificate.
+    pub client_cert: bool,
+    /// The host it connected to (the name the certificate must be valid for).
+    pub host: &'a str,
+    /// The connection (TCP, and TLS from this side's view) was made; the first exchange failed.
+    pub connected: bool,
+}
+
+/// What the chain of `err` says about `attempt`.
+#[must_use]
+pub fn describe(err: &(dyn Error + 'static), attempt: &Attempt<'_>) -> String {
+    let (tls, host) = (attempt.tls, attempt.host);
+    let chain = chain(err);
+    if let Some(r) = chain.iter().find_map(|e| rustls_error(*e)) {
+        return describe_rustls(r, host);
+    }
+    let text: String = chain.iter().map(|e| e.to_string().to_lowercase()).collect::<Vec<_>>().join(": ");
+    let detail = chain.last().map(ToString::to_string).unwrap_or_default();
+    // After a TLS 1.3 handshake that succeeded on this side, the server judges the client's
+    // certificate; its alert often reaches the client only as text (h2 keeps io errors as
+    // strings) or not at all (the connection is closed under the first request).
+    if tls && attempt.connected {
+        let lost = ["eof", "reset", "closed", "broken pipe", "alert"].iter().any(|w| text.contains(w));
+        if text.contains("certificaterequired") || (lost && !attempt.client_cert) {
+            return describe_rustls(&rustls::Error::AlertReceived(AlertDescription::CertificateRequired), host);
+        }
+        if lost {
+            return format!(
+                "the learner refused this client's certificate ({detail}): it must be signed by the CA the learner trusts \
+                 (its --tls-client-ca) and valid now"
+            );
+        }
+    }
+    if text.contains("connection refused") {
+        return format!("connection refused: nothing listens there ({detail})");
+    }
+    if tls && (text.contains("eof") || text.contains("reset") || text.contains("closed") || text.contains("broken pipe")) {
+        return format!(
+            "the server closed the connection during the TLS handshake: it may serve plaintext (then connect with http:// and \
+             no --tls-ca) ({detail})"
+        );
+    }
+    if tls && text.contains("h2 was not negotiated") {
+        return "the server's TLS does not offer HTTP/2 (ALPN h2): it is not a gRPC server".into();
+    }
+    if !tls && ["frame", "reset", "closed", "broken pipe", "protocol", "eof", "not http", "malformed"].iter().any(|w| text.contains(w)) {
+        return format!(
+            "the server ended the connection without speaking HTTP/2 in clear: it may serve TLS (then connect with \
+             https://HOST:PORT and --tls-ca FILE) ({detail})"
+        );
+    }
+    detail
+}
+
+/// The errors of a chain, outermost first, looking inside `io::Error`s too (whose `source()`
+/// skips the error they wrap).
+fn chain<'a>(err: &'a (dyn Error + 'static)) -> Vec<&'a (dyn Error + 'static)> {
+    let mut out = Vec::new();
+    let mut next = Some(err);
+    while let Some(e) = next {
+        out.push(e);
+        next = match e.downcast_ref::<std::io::Error>().and_then(|io| io.get_ref()) {
+            Some(inner) => Some(inner as &(dyn Error + 'static)),
+            None => e.source(),
+        };
+    }
+    out
+}
+
+fn rustls_error<'a>(e: &'a (dyn Error + 'static)) -> Option<&'a rustls::Error> {
+    e.downcast_ref::<rustls::Error>()
+}
+
+fn describe_rustls(e: &rustls::Error, host: &str) -> String {
+    use rustls::Error as E;
+    match e {
+        E::InvalidCertificate(c) => match c {
+            // A CA of the same name that did not sign it (two `learner certs` runs) is a bad
+            // signature rather than an unknown issuer: the same mistake.
+            CertificateError::UnknownIssuer | CertificateError::BadSignature => format!(
+                "the learner's certificate is not signed by the CA in --tls-ca ({}): give the CA that signed it",
+                if matches!(c, CertificateError::UnknownIssuer) { "unknown issuer" } else { "bad signature" }
+            ),
+            CertificateError::Expired | CertificateError::ExpiredContext { .. } => {
+                "the learner's certificate has expired: make a new one (`learner certs`) and send the learner SIGHUP".into()
+            }
+            CertificateError::NotValidYet | CertificateError::NotValidYetContext { .. } => {
+                "the learner's certificate is not valid yet (its start date is in the future: check both machines' clocks)".into()
+            }
+            CertificateError::NotValidForName | CertificateError::NotValidForNameContext { .. } => format!(
+                "hostname mismatch: the learner's certificate is not valid for `{host}`: connect with a name it lists, or \
+                 make one that lists `{host}` (`learner certs --hosts {host},...`)"
+            ),
+            other => format!("the learner's certificate was refused: {other:?}"),
+        },
+        E::AlertReceived(AlertDescription::CertificateRequired) => {
+            "the learner requires a client certificate (mutual TLS): give --tls-cert FILE and --tls-key FILE".into()
+        }
+        E::AlertReceived(
+            a @ (AlertDescription::BadCertificate
+            | AlertDescription::UnknownCA
+            | AlertDescription::CertificateExpired
+            | AlertDescription::CertificateUnknown
+            | AlertDescription::DecryptError),
+        ) => format!(
+            "the learner refused this client's certificate ({a:?}): it must be signed by the CA the learner trusts \
+             (its --tls-client-ca) and valid now"
+        ),
+        E::InvalidMessage(_) | E::InappropriateMessage { .. } | E::InappropriateHandshakeMessage { .. } => {
+            format!("the server did not answer in TLS ({e}): it may serve plaintext (then connect with http:// and no --tls-ca)")
+        }
+        other => format!("TLS: {other}"),
+    }
+}
