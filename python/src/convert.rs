@@ -25,6 +25,8 @@ pub fn collision_code(kind: Option<CollisionKind>) -> i8 {
         Some(CollisionKind::Pole) => 4,
         Some(CollisionKind::Pillar) => 5,
         Some(CollisionKind::OffRoad) => 6,
+        Some(CollisionKind::Pedestrian) => 7,
+        Some(CollisionKind::Construction) => 8,
     }
 }
 

@@ -7,9 +7,12 @@ use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::Serialize;
 
-use crate::camera::{BirdsEye, Camera, Image, SceneBox, car_box};
+use crate::camera::{BirdsEye, Camera, Image, SceneBox, car_box, prop_box, walker_box};
 use crate::collision::{CollisionKind, Obb, leaves_drivable_area};
 use crate::config::{ConfigError, EnvConfig, Variant};
+use crate::hazards::spawn::{feasible, place};
+use crate::hazards::walker::WALKER_HEIGHT;
+use crate::hazards::{Hazard, HazardInfo};
 use crate::map::LaneId;
 use crate::math::{Vec2, left_normal};
 pub use crate::path_features::PATH_FEATURES;
@@ -53,6 +56,8 @@ pub struct StepInfo {
     pub reward_terms: RewardTerms,
     /// Steps since reset.
     pub steps: u32,
+    /// The episode's hazard, if it has one.
+    pub hazard: Option<HazardInfo>,
 }
 
 /// The result of one step.
@@ -91,6 +96,8 @@ pub struct Env {
     pub parked: Vec<Obb>,
     pub route: Route,
     pub tracking: Tracking,
+    /// The episode's hazard (see `hazards`), unknown to the route and the observation.
+    pub hazard: Option<Hazard>,
     rng: ChaCha8Rng,
     tracker: RouteTracker,
     steps: u32,
@@ -127,6 +134,7 @@ impl Env {
             traffic,
             parked: Vec::new(),
             route: dummy,
+            hazard: None,
             tracking: Tracking { d: 0.0, s: 0.0, lateral: 0.0 },
             rng: ChaCha8Rng::seed_from_u64(0),
             tracker: RouteTracker::default(),
@@ -146,6 +154,7 @@ impl Env {
                 arrived: false,
                 reward_terms: RewardTerms::default(),
                 steps: 0,
+                hazard: None,
             },
             camera,
             image: Image::new(0, 0, 1),
@@ -158,13 +167,32 @@ impl Env {
     /// Starts an episode. Everything random in it (route, traffic, parking) comes from `seed`.
     pub fn reset(&mut self, seed: u64, scenario: Scenario) -> Result<Observation, EnvError> {
         self.rng = ChaCha8Rng::seed_from_u64(seed);
+        // The hazard comes from a stream of its own, so that hazards off (or an episode drawn
+        // without one) leaves everything else as it was.
+        let mut hazard_rng = ChaCha8Rng::seed_from_u64(seed);
+        hazard_rng.set_stream(HAZARD_STREAM);
+        let hz = &self.cfg.hazards;
+        let kind =
+            (hz.rate > 0.0 && hazard_rng.random_bool(f64::from(hz.rate))).then(|| hz.kinds[hazard_rng.random_range(0..hz.kinds.len())]);
         let cfg = &self.cfg;
         let (route, time_limit) = match scenario {
-            Scenario::Random => (
-                random_route(&self.town, cfg.route_length_min, cfg.route_length_max, cfg.waypoint_spacing, &mut self.rng)
-                    .ok_or(EnvError::NoRandomRoute { min: cfg.route_length_min, max: cfg.route_length_max })?,
-                cfg.time_limit,
-            ),
+            Scenario::Random => {
+                let draw = |rng: &mut ChaCha8Rng| {
+                    random_route(&self.town, cfg.route_length_min, cfg.route_length_max, cfg.waypoint_spacing, rng)
+                        .ok_or(EnvError::NoRandomRoute { min: cfg.route_length_min, max: cfg.route_length_max })
+                };
+                let mut route = draw(&mut self.rng)?;
+                // A hazard episode draws routes until one has room for its kind.
+                if let Some(k) = kind {
+                    for _ in 0..HAZARD_ROUTE_TRIES {
+                        if feasible(k, hz, &self.town, &route).is_some() {
+                            break;
+                        }
+                        route = draw(&mut self.rng)?;
+                    }
+                }
+                (route, cfg.time_limit)
+            }
             Scenario::Eval(r) => {
                 (eval_route(&self.town, r, cfg.waypoint_spacing).ok_or(EnvError::ScenarioNotOnMap(r.name()))?, cfg.eval_time_limit)
             }
@@ -194,6 +222,15 @@ impl Env {
         let avoid = [start, self.route.path.point_at(15.0)];
         self.traffic.spawn(&self.town, self.cfg.traffic.vehicles, &avoid, self.cfg.traffic.spawn_clearance, &mut self.rng);
         self.parked = self.place_parked_cars(self.cfg.traffic.parked_cars, start);
+        self.hazard = kind.and_then(|k| place(k, &self.cfg.hazards, &self.town, &self.route, &mut self.traffic, &mut hazard_rng));
+        if let Some(h) = &self.hazard {
+            // Shoulders free around the hazard: room to pass it, and no second obstacle.
+            let route = &self.route;
+            self.parked.retain(|p| {
+                let proj = route.path.project(p.centre);
+                !(proj.s > h.s - 25.0 && proj.s < h.s + 70.0 && proj.distance < 8.0)
+            });
+        }
         self.last_info = self.info_now(None, false, RewardTerms::default());
         self.render();
         Ok(self.observation())
@@ -211,6 +248,9 @@ impl Env {
         let granted = self.traffic.manage_junctions(&self.town, self.clock, self.ego_hold, self.ego_request);
         if granted {
             self.ego_hold = self.ego_request.take().map(|r| r.connector);
+        }
+        if let Some(h) = &mut self.hazard {
+            h.step(&self.town, &self.route, &mut self.traffic, &self.ego, self.tracking.s, dt);
         }
         let body = self.ego_body();
         let view = EgoView { body, speed: self.ego.speed, hold: self.ego_hold };
@@ -277,6 +317,10 @@ impl Env {
         }
         for (i, body) in self.parked.iter().enumerate() {
             self.scene.push(car_box(*body, i + 3));
+        }
+        if let Some(h) = &self.hazard {
+            self.scene.extend(h.props.iter().enumerate().map(|(i, p)| prop_box(p, i + 5)));
+            self.scene.extend(h.walkers.iter().map(|w| walker_box(w.body(), WALKER_HEIGHT)));
         }
     }
 
@@ -350,6 +394,9 @@ impl Env {
         for p in &self.parked {
             h.write(p.centre.x.to_bits() as u64);
         }
+        if let Some(hz) = &self.hazard {
+            hz.hash_into(&mut |x| h.write(x));
+        }
         h.0
     }
 
@@ -363,6 +410,7 @@ impl Env {
             arrived,
             reward_terms,
             steps: self.steps,
+            hazard: self.hazard.as_ref().map(Hazard::info),
         }
     }
 
@@ -411,6 +459,9 @@ impl Env {
         if self.parked.iter().any(overlaps) {
             return Some(CollisionKind::ParkedCar);
         }
+        if let Some(kind) = self.hazard.as_ref().and_then(|h| h.hit(body)) {
+            return Some(kind);
+        }
         if let Some(kind) = self.town.statics.hit(body) {
             return Some(kind);
         }
@@ -454,6 +505,11 @@ impl Env {
         out
     }
 }
+
+/// The stream of an episode's seed that hazards draw from (`HAZ` in ASCII).
+const HAZARD_STREAM: u64 = 0x0048_415a;
+/// Random routes a hazard episode draws at most to find one with room for its kind.
+const HAZARD_ROUTE_TRIES: usize = 40;
 
 /// 64-bit FNV-1a over words.
 #[derive(Debug)]

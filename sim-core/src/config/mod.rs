@@ -14,6 +14,7 @@ use serde::{Deserialize, Serialize};
 pub use self::error::ConfigError;
 pub use self::variant::Variant;
 use crate::camera::CameraConfig;
+use crate::hazards::HazardsConfig;
 use crate::reward::RewardConfig;
 use crate::traffic::IdmParams;
 use crate::vehicle::VehicleParams;
@@ -40,6 +41,8 @@ pub struct EnvConfig {
     pub vehicle: VehicleParams,
     /// The front camera; `None` renders no image (default: 84×84 gray).
     pub camera: Option<CameraConfig>,
+    /// Hazards the planner does not know (default: none).
+    pub hazards: HazardsConfig,
 }
 
 impl Default for EnvConfig {
@@ -56,6 +59,7 @@ impl Default for EnvConfig {
             traffic: TrafficConfig::default(),
             vehicle: VehicleParams::default(),
             camera: Some(CameraConfig::default()),
+            hazards: HazardsConfig::default(),
         }
     }
 }
@@ -143,7 +147,7 @@ impl EnvConfig {
         if let Some(c) = &self.camera {
             c.validate()?;
         }
-        Ok(())
+        self.hazards.validate()
     }
 }
 
