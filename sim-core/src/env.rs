@@ -16,7 +16,8 @@ use crate::hazards::{Hazard, HazardInfo};
 use crate::map::LaneId;
 use crate::math::{Vec2, left_normal};
 pub use crate::path_features::PATH_FEATURES;
-use crate::path_features::path_features;
+use crate::path_features::{path_features, path_features_along};
+use crate::planner::{Detour, LocalPlanner, Planner, WorldView};
 use crate::reward::{Outcome, RewardTerms};
 use crate::route::{Route, RouteTracker, Tracking};
 use crate::scenario::{Scenario, eval_route, random_route};
@@ -98,6 +99,8 @@ pub struct Env {
     pub tracking: Tracking,
     /// The episode's hazard (see `hazards`), unknown to the route and the observation.
     pub hazard: Option<Hazard>,
+    /// The planner of the waypoints (`[env] planner`).
+    planner: LocalPlanner,
     rng: ChaCha8Rng,
     tracker: RouteTracker,
     steps: u32,
@@ -120,6 +123,7 @@ impl Env {
     pub fn new(town: Arc<Town>, cfg: EnvConfig) -> Result<Self, EnvError> {
         cfg.validate()?;
         let camera = cfg.camera.as_ref().map(Camera::new).transpose()?;
+        let planner_kind = cfg.planner;
         let traffic = Traffic::empty(&town, cfg.traffic.idm, cfg.vehicle);
         let dummy = crate::route::Route {
             path: crate::polyline::Polyline::new([Vec2::ZERO, Vec2::X]).expect("two points"),
@@ -135,6 +139,7 @@ impl Env {
             parked: Vec::new(),
             route: dummy,
             hazard: None,
+            planner: LocalPlanner::new(planner_kind),
             tracking: Tracking { d: 0.0, s: 0.0, lateral: 0.0 },
             rng: ChaCha8Rng::seed_from_u64(0),
             tracker: RouteTracker::default(),
@@ -231,6 +236,8 @@ impl Env {
                 !(proj.s > h.s - 25.0 && proj.s < h.s + 70.0 && proj.distance < 8.0)
             });
         }
+        self.planner = LocalPlanner::new(self.cfg.planner);
+        self.update_planner();
         self.last_info = self.info_now(None, false, RewardTerms::default());
         self.render();
         Ok(self.observation())
@@ -258,6 +265,7 @@ impl Env {
         self.clock += 1;
         self.steps += 1;
 
+        self.update_planner();
         let collision = self.collision(&body);
         let l = self.ego.pos.distance(self.route.destination());
         let arrived = collision.is_none() && self.cfg.reward.arrived(l);
@@ -266,7 +274,8 @@ impl Env {
             (None, true) => Outcome::Arrived,
             (None, false) => Outcome::Driving,
         };
-        let terms = self.cfg.reward.reward(self.cfg.variant, outcome, self.ego.speed, l, self.l_prev, self.tracking.d);
+        let d = self.planned_tracking().d;
+        let terms = self.cfg.reward.reward(self.cfg.variant, outcome, self.ego.speed, l, self.l_prev, d);
         self.l_prev = l;
         let terminated = outcome != Outcome::Driving;
         let truncated = !terminated && self.steps >= self.time_limit;
@@ -281,7 +290,7 @@ impl Env {
     pub fn observation(&self) -> Observation {
         Observation {
             speed: self.ego.speed,
-            d: (self.cfg.variant == Variant::Hybrid).then_some(self.tracking.d),
+            d: (self.cfg.variant == Variant::Hybrid).then(|| self.planned_tracking().d),
             path: (self.cfg.variant == Variant::Hybrid).then(|| self.path_features()),
             image: self.camera.is_some().then(|| self.image.clone()),
         }
@@ -294,7 +303,63 @@ impl Env {
     /// ahead, which previews turns and curves. Defined in `path_features.rs`.
     #[must_use]
     pub fn path_features(&self) -> [f32; PATH_FEATURES] {
-        path_features(&self.route, &self.tracking, &self.ego)
+        match self.planner.detour() {
+            None => path_features(&self.route, &self.tracking, &self.ego),
+            Some(d) => path_features_along(|s| bent_point(&self.route, &d, s), &self.planned_tracking(), &self.ego),
+        }
+    }
+
+    /// The planner's path at route arc length `s`: the route's point, shifted by its detour.
+    #[must_use]
+    pub fn planned_point(&self, s: f32) -> Vec2 {
+        match self.planner.detour() {
+            None => self.route.path.point_at(s),
+            Some(d) => bent_point(&self.route, &d, s),
+        }
+    }
+
+    /// The planner's detour from the route, if it asks for one.
+    #[must_use]
+    pub fn detour(&self) -> Option<Detour> {
+        self.planner.detour()
+    }
+
+    /// The route arc length the planner asks to stop at (no way round is clear), if any.
+    #[must_use]
+    pub fn planned_stop(&self) -> Option<f32> {
+        self.planner.stop_at()
+    }
+
+    /// The ego measured against the planner's path: d to its closest (bent) waypoint and the
+    /// lateral offset from it. The route's tracking when the planner follows the route.
+    #[must_use]
+    pub fn planned_tracking(&self) -> Tracking {
+        let Some(det) = self.planner.detour() else { return self.tracking };
+        let s = self.tracking.s;
+        let spacing = self.cfg.waypoint_spacing;
+        let len = self.route.length();
+        let i = self.tracker.waypoint;
+        let d = (i.saturating_sub(1)..(i + 3).min(self.route.waypoints.len()))
+            .map(|k| {
+                let ws = (k as f32 * spacing).min(len);
+                (self.route.waypoints[k] + left_normal(self.route.path.tangent_at(ws)) * det.offset_at(ws)).distance(self.ego.pos)
+            })
+            .fold(f32::INFINITY, f32::min);
+        Tracking { d, s, lateral: self.tracking.lateral - det.offset_at(s) }
+    }
+
+    fn update_planner(&mut self) {
+        let world = WorldView {
+            town: &self.town,
+            route: &self.route,
+            ego: &self.ego,
+            ego_s: self.tracking.s,
+            vehicle: &self.cfg.vehicle,
+            traffic: &self.traffic,
+            parked: &self.parked,
+            hazard: self.hazard.as_ref(),
+        };
+        self.planner.update(&world);
     }
 
     /// The last front-camera image (empty without a camera).
@@ -402,7 +467,7 @@ impl Env {
 
     fn info_now(&self, collision: Option<CollisionKind>, arrived: bool, reward_terms: RewardTerms) -> StepInfo {
         StepInfo {
-            d: self.tracking.d,
+            d: self.planned_tracking().d,
             l: self.ego.pos.distance(self.route.destination()),
             speed: self.ego.speed,
             collision,
@@ -504,6 +569,11 @@ impl Env {
         }
         out
     }
+}
+
+/// A route point shifted sideways by a detour.
+fn bent_point(route: &Route, d: &Detour, s: f32) -> Vec2 {
+    route.path.point_at(s) + left_normal(route.path.tangent_at(s)) * d.offset_at(s)
 }
 
 /// The stream of an episode's seed that hazards draw from (`HAZ` in ASCII).

@@ -15,6 +15,7 @@ pub mod hazards;
 pub mod map;
 pub mod math;
 pub mod path_features;
+pub mod planner;
 pub mod polyline;
 pub mod reward;
 pub mod route;

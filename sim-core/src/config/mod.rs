@@ -15,6 +15,7 @@ pub use self::error::ConfigError;
 pub use self::variant::Variant;
 use crate::camera::CameraConfig;
 use crate::hazards::HazardsConfig;
+use crate::planner::PlannerKind;
 use crate::reward::RewardConfig;
 use crate::traffic::IdmParams;
 use crate::vehicle::VehicleParams;
@@ -43,6 +44,9 @@ pub struct EnvConfig {
     pub camera: Option<CameraConfig>,
     /// Hazards the planner does not know (default: none).
     pub hazards: HazardsConfig,
+    /// The planner giving the waypoints: `astar` (the global route, default) or `astar+avoid`
+    /// (bent around perceived hazards and obstacles).
+    pub planner: PlannerKind,
 }
 
 impl Default for EnvConfig {
@@ -60,6 +64,7 @@ impl Default for EnvConfig {
             vehicle: VehicleParams::default(),
             camera: Some(CameraConfig::default()),
             hazards: HazardsConfig::default(),
+            planner: PlannerKind::Astar,
         }
     }
 }

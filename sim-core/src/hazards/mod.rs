@@ -64,7 +64,8 @@ pub(crate) enum Script {
     Crossing { trigger_time: f32 },
     /// The leader brakes at its limit on reaching the hazard point, stands `stop_time` s, drives on.
     HardBrake { stop_time: f32, stopped_for: f32, released: bool },
-    /// The car alongside moves into `lane` once it is `gap` metres ahead of the ego's front.
+    /// The car alongside moves into `lane` once it is `gap` metres ahead of the ego's front (or
+    /// once the ego nears the hazard point with the car still ahead).
     CutIn { lane: LaneId, gap: f32, changing: bool, side: f32 },
     /// The oncoming car pulls `width` metres to its left (into the ego's lane) when near, holds
     /// for 30 m of its travel, and returns. `phase`: 0 waiting, 1 out, 2 returning, 3 done.
@@ -150,7 +151,8 @@ impl Hazard {
                 }
                 if !*changing {
                     let ahead = route.path.project(traffic.cars[i].pos).s - ego_s - 2.0 * half;
-                    if ahead < *gap {
+                    // At the drawn gap, or at the latest as the ego nears the hazard point.
+                    if ahead > 0.0 && (ahead < *gap || ego_s > self.s - 5.0) {
                         *changing = true;
                         self.triggered = true;
                         let p = town.map.lanes[*lane].path.project(traffic.cars[i].pos);

@@ -17,6 +17,9 @@ use crate::traffic::Traffic;
 
 /// No hazard stands closer to the route's start than this, metres (the ego is 4.5 m long).
 pub const MIN_START_DISTANCE: f32 = 15.0;
+/// Room kept between a lane's start and a hazard, metres: a junction lets a car onto a lane only
+/// when its entry has room.
+const LANE_ENTRY_ROOM: f32 = 15.0;
 /// Room kept after a hazard before the destination, metres.
 const ROOM_AFTER: f32 = 20.0;
 
@@ -28,7 +31,8 @@ fn needs(kind: HazardKind, cfg: &HazardsConfig) -> (f32, f32) {
         HazardKind::Construction => (0.0, cfg.closure_length.max + 2.0),
         // The leader drives 25 m of the lane before it brakes.
         HazardKind::HardBrake => (27.0, 5.0),
-        HazardKind::CutIn => (0.0, 60.0),
+        // The car starts 25 m before the point, slow, so that the ego reaches it near there.
+        HazardKind::CutIn => (27.0, 40.0),
         HazardKind::OppositeOvertaker => (0.0, 45.0),
         HazardKind::JunctionRunner => (0.0, 0.0),
     }
@@ -67,7 +71,7 @@ pub fn feasible(kind: HazardKind, cfg: &HazardsConfig, town: &Town, route: &Rout
         if !lane_suits(town, kind, lane) {
             continue;
         }
-        let lo = (a + before + 1.0).max(MIN_START_DISTANCE).max(if kind == HazardKind::HardBrake { 40.0 } else { 0.0 });
+        let lo = (a + before + LANE_ENTRY_ROOM).max(MIN_START_DISTANCE).max(if kind == HazardKind::HardBrake { 40.0 } else { 0.0 });
         let hi = (b - after - 1.0).min(route.length() - ROOM_AFTER);
         if hi < lo {
             continue;
@@ -170,9 +174,9 @@ pub fn place(
         HazardKind::CutIn => {
             let from = l.left.or(l.right)?;
             let side = if l.left == Some(from) { 1.0 } else { -1.0 };
-            let p = at(route, s, side * w);
+            let p = at(route, s - 25.0, side * w);
             let fl = &town.map.lanes[from];
-            let i = traffic.add_driving_on_lane(town, from, fl.path.project(p).s, fl.speed_limit * 0.55, fl.successors.first().copied());
+            let i = traffic.add_driving_on_lane(town, from, fl.path.project(p).s, fl.speed_limit * 0.4, fl.successors.first().copied());
             traffic.cars[i].forced_accel = Some(0.0);
             hazard.car = Some(i);
             hazard.script = Script::CutIn { lane, gap: draw(rng, cfg.cut_in_gap), changing: false, side };
