@@ -110,6 +110,8 @@ pub struct Env {
     clock: u64,
     ego_hold: Option<LaneId>,
     ego_request: Option<EgoRequest>,
+    /// Junctions the ego entered without holding their connector, this episode.
+    right_of_way_violations: u32,
     done: bool,
     last_info: StepInfo,
     camera: Option<Camera>,
@@ -149,6 +151,7 @@ impl Env {
             clock: 0,
             ego_hold: None,
             ego_request: None,
+            right_of_way_violations: 0,
             done: true,
             last_info: StepInfo {
                 d: 0.0,
@@ -213,6 +216,7 @@ impl Env {
         self.l_prev = start.distance(self.route.destination());
         self.ego_hold = None;
         self.ego_request = None;
+        self.right_of_way_violations = 0;
         self.done = false;
 
         self.traffic = Traffic::empty(&self.town, self.cfg.traffic.idm, self.cfg.vehicle);
@@ -422,6 +426,13 @@ impl Env {
         Obb::new(self.ego.pos, self.cfg.vehicle.half_extents(), self.ego.heading)
     }
 
+    /// How many junctions the ego entered this episode without right of way (its connector not
+    /// granted by the junction's reservations).
+    #[must_use]
+    pub fn right_of_way_violations(&self) -> u32 {
+        self.right_of_way_violations
+    }
+
     /// The junction connector the ego vehicle holds (may cross), if any.
     #[must_use]
     pub fn ego_hold(&self) -> Option<LaneId> {
@@ -494,6 +505,7 @@ impl Env {
         if on_route && self.town.is_connector(current) && self.ego_hold.is_none() {
             // Entered without a grant: it is there all the same, and traffic must know.
             self.ego_hold = Some(current);
+            self.right_of_way_violations += 1;
             self.ego_request = None;
         }
         match self.next_connector() {

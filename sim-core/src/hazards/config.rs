@@ -37,7 +37,7 @@ impl Range {
 pub struct HazardsConfig {
     /// Probability that an episode gets a hazard, 0 to 1 (default 0: none).
     pub rate: f32,
-    /// The kinds drawn from, uniformly (default: all seven).
+    /// The kinds drawn from, uniformly (default: all six).
     pub kinds: Vec<HazardKind>,
     /// Route distance from the start to the hazard, metres (default 45–75).
     pub distance: Range,

@@ -18,20 +18,17 @@ pub enum HazardKind {
     Construction,
     /// An oncoming car pulls into the ego's lane to pass.
     OppositeOvertaker,
-    /// A car enters a junction without right of way as the ego crosses.
-    JunctionRunner,
 }
 
 impl HazardKind {
     /// Every kind, in the order.
-    pub const ALL: [HazardKind; 7] = [
+    pub const ALL: [HazardKind; 6] = [
         HazardKind::StalledCar,
         HazardKind::PedestrianCrossing,
         HazardKind::CutIn,
         HazardKind::HardBrake,
         HazardKind::Construction,
         HazardKind::OppositeOvertaker,
-        HazardKind::JunctionRunner,
     ];
 
     /// The kind's name in configuration and reports.
@@ -44,7 +41,6 @@ impl HazardKind {
             HazardKind::HardBrake => "hard_brake",
             HazardKind::Construction => "construction",
             HazardKind::OppositeOvertaker => "opposite_overtaker",
-            HazardKind::JunctionRunner => "junction_runner",
         }
     }
 

@@ -34,7 +34,6 @@ fn needs(kind: HazardKind, cfg: &HazardsConfig) -> (f32, f32) {
         // The car starts 25 m before the point, slow, so that the ego reaches it near there.
         HazardKind::CutIn => (27.0, 40.0),
         HazardKind::OppositeOvertaker => (0.0, 45.0),
-        HazardKind::JunctionRunner => (0.0, 0.0),
     }
 }
 
@@ -192,7 +191,6 @@ pub fn place(
             hazard.car = Some(i);
             hazard.script = Script::Overtake { width: w, out_for: 0.0, phase: 0 };
         }
-        HazardKind::JunctionRunner => return None,
     }
     clear_around(route, traffic, &hazard);
     Some(hazard)

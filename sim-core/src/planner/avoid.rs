@@ -17,6 +17,8 @@ const LOOKAHEAD: f32 = 60.0;
 const MARGIN: f32 = 0.35;
 /// Offsets tried, metres (each to the left, then to the right).
 const OFFSETS: [f32; 15] = [0.5, 0.75, 1.0, 1.25, 1.5, 1.75, 2.0, 2.25, 2.5, 2.75, 3.0, 3.25, 3.5, 3.75, 4.0];
+/// A stopped car this close behind an obstacle is queued behind it, metres.
+const QUEUE_GAP: f32 = 10.0;
 /// Seconds of margin an oncoming car must leave after the ego is back in its lane.
 const GAP_MARGIN: f32 = 2.0;
 
@@ -118,13 +120,31 @@ fn obstacles(w: &WorldView<'_>) -> Vec<Extent> {
         out.extend(h.props.iter().filter_map(|p| extent(&p.body)));
     }
     out.extend(w.parked.iter().filter_map(extent));
-    for (i, c) in w.traffic.cars.iter().enumerate() {
-        if !c.active {
-            continue;
+    out.extend(
+        (0..w.traffic.cars.len())
+            .filter(|&i| w.traffic.cars[i].active && w.traffic.cars[i].parked)
+            .filter_map(|i| extent(&w.traffic.body(i))),
+    );
+    // Cars standing still in the route's lane right behind an obstacle are queued behind it: part
+    // of the obstacle (a few passes, for a queue of several).
+    let mut queued = vec![false; w.traffic.cars.len()];
+    for _ in 0..3 {
+        for (i, c) in w.traffic.cars.iter().enumerate() {
+            if !c.active || c.parked || c.speed > 0.3 || queued[i] {
+                continue;
+            }
+            let Some(e) = extent(&w.traffic.body(i)) else { continue };
+            if e.l1 < -1.0 || e.l0 > 1.0 {
+                continue;
+            }
+            if out.iter().any(|o| o.s0 > e.s1 - 0.5 && o.s0 < e.s1 + QUEUE_GAP && o.l1 > e.l0 && o.l0 < e.l1) {
+                queued[i] = true;
+                out.push(e);
+            }
         }
-        let body = w.traffic.body(i);
-        if c.parked {
-            out.extend(extent(&body));
+    }
+    for (i, c) in w.traffic.cars.iter().enumerate() {
+        if !c.active || c.parked || queued[i] {
             continue;
         }
         // An oncoming car in the ego's lane sweeps the route between it and the ego.
