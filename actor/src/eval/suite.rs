@@ -379,6 +379,9 @@ pub fn suite_table(report: &SuiteReport, markdown: bool) -> String {
 mod tests {
     use super::*;
     use crate::eval::run::model_based;
+    use crate::greedy::load_checkpoint;
+    use crate::testing::{tiny_config, write_checkpoint};
+    use sim_core::config::Variant;
 
     fn opts(suite: Suite, runs: u32) -> SuiteOptions {
         SuiteOptions { suite, runs, seed: 0, traffic: None, town: sim_core::town::Town::default_town(), progress: false }
@@ -428,5 +431,20 @@ mod tests {
             assert!(a.scenarios.iter().all(|s| s.runs[0].hazard.is_none()));
         }
         assert!(Suite::from_name("meteor").unwrap_err().to_string().contains("`hazards` or `clean`"));
+    }
+
+    #[test]
+    fn a_checkpoint_of_today_evaluates_on_both_suites_with_its_planner() {
+        let dir = tempfile::tempdir().unwrap();
+        write_checkpoint(dir.path(), &tiny_config(Variant::Hybrid));
+        for suite in [Suite::Hazards, Suite::Clean] {
+            let agent = load_checkpoint(dir.path()).unwrap();
+            let mut agents = vec![Agent { name: "fresh".into(), driver: Driver::Greedy(Box::new(agent)) }];
+            let report = evaluate_suite(&mut agents, &opts(suite, 1)).unwrap();
+            let a = &report.agents[0];
+            assert_eq!(a.planner, "astar", "checkpoints so far plan with A*");
+            assert!(a.driving_score.is_finite() && (0.0..=1.0).contains(&a.driving_score), "{}", a.driving_score);
+            assert_eq!(a.scenarios.len(), if suite == Suite::Hazards { 6 } else { 7 });
+        }
     }
 }
