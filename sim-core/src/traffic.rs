@@ -68,6 +68,9 @@ impl IdmParams {
 
 /// Look-ahead for leaders and stop lines, metres.
 const LOOKAHEAD: f32 = 80.0;
+/// How far ahead a car looks for a hazard's walkers and closures, metres: its braking distance
+/// from the speed limits of towns, with a margin.
+const YIELD_LOOKAHEAD: f32 = 40.0;
 /// A reservation is released once the car's centre is this far along the exit lane, metres: half a
 /// car length and a margin, so that its rear has left the connector.
 pub const RELEASE_DISTANCE: f32 = 2.75;
@@ -506,11 +509,11 @@ impl Traffic {
         }
         // A hazard's walkers and closures standing in the lane ahead.
         for o in &self.yield_to {
-            if c.pos.distance_squared(o.centre) > LOOKAHEAD * LOOKAHEAD {
+            if c.pos.distance_squared(o.centre) > YIELD_LOOKAHEAD * YIELD_LOOKAHEAD {
                 continue;
             }
             let path = &lanes[c.lane].path;
-            let p = path.project_range(o.centre, c.segment, c.segment + LOOKAHEAD as usize);
+            let p = path.project_range(o.centre, c.segment, c.segment + YIELD_LOOKAHEAD as usize);
             if p.s > c.s && p.lateral.abs() < lanes[c.lane].width / 2.0 + o.half.length() {
                 consider(p.s - c.s - half - o.half.length() - 1.0, 0.0);
             }

@@ -366,11 +366,8 @@ pub fn suite_table(report: &SuiteReport, markdown: bool) -> String {
     }
     let _ = writeln!(
         out,
-        "{}Suite `{}` on town `{}`, {} run(s) per scenario. Driving score = route completion × infraction penalty (CARLA leaderboard factors: pedestrian 0.50, vehicle 0.60, static 0.65, right of way 0.70, timeout 0.70; off-road and blocked end the run); success = arrival without infraction.",
-        if markdown { "\n" } else { "\n" },
-        report.suite,
-        report.town,
-        report.runs
+        "\nSuite `{}` on town `{}`, {} run(s) per scenario. Driving score = route completion × infraction penalty (CARLA leaderboard factors: pedestrian 0.50, vehicle 0.60, static 0.65, right of way 0.70, timeout 0.70; off-road and blocked end the run); success = arrival without infraction.",
+        report.suite, report.town, report.runs
     );
     out
 }

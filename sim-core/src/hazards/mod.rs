@@ -127,7 +127,9 @@ impl Hazard {
                 if !c.active || *released {
                     return;
                 }
-                if !self.triggered && route.path.project(c.pos).s >= self.s {
+                // On reaching the hazard point (measured along the ego's heading: cheap, and the
+                // leader drives the route's lane ahead of it).
+                if !self.triggered && (c.pos - route.path.point_at(self.s)).dot(route.path.tangent_at(self.s)) >= 0.0 {
                     self.triggered = true;
                 }
                 if self.triggered {
@@ -150,7 +152,7 @@ impl Hazard {
                     return;
                 }
                 if !*changing {
-                    let ahead = route.path.project(traffic.cars[i].pos).s - ego_s - 2.0 * half;
+                    let ahead = (traffic.cars[i].pos - ego.pos).dot(ego.forward()) - 2.0 * half;
                     // At the drawn gap, or at the latest as the ego nears the hazard point.
                     if ahead > 0.0 && (ahead < *gap || ego_s > self.s - 5.0) {
                         *changing = true;
@@ -177,7 +179,7 @@ impl Hazard {
                 let step = LANE_CHANGE_SPEED * dt;
                 match *phase {
                     0 => {
-                        let gap = route.path.project(c.pos).s - ego_s;
+                        let gap = (c.pos - ego.pos).dot(ego.forward());
                         if gap < (ego.speed + c.speed) * 3.5 + 10.0 {
                             *phase = 1;
                             self.triggered = true;
