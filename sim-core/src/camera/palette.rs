@@ -1,6 +1,6 @@
 //! Colours of the world, shared by both views.
 
-use crate::hazards::PropKind;
+use crate::hazards::prop::PropKind;
 use crate::map::{ObstacleKind, SHADE, Surface};
 
 pub const SKY_TOP: [u8; 3] = [120, 170, 225];

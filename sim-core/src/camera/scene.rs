@@ -38,7 +38,7 @@ pub fn walker_box(body: Obb, height: f32) -> SceneBox {
 
 /// A hazard's prop (cone, barrier, parked car) as a scene box.
 #[must_use]
-pub fn prop_box(prop: &crate::hazards::Prop, index: usize) -> SceneBox {
+pub fn prop_box(prop: &crate::hazards::prop::Prop, index: usize) -> SceneBox {
     SceneBox { footprint: prop.body, bottom: 0.0, top: prop.height, colour: palette::prop(prop.kind, index) }
 }
 

@@ -4,7 +4,7 @@
 use serde::{Deserialize, Serialize};
 
 use super::kind::HazardKind;
-use crate::config::ConfigError;
+use crate::config::error::ConfigError;
 
 /// A closed range `[min, max]` a parameter is drawn from uniformly.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]

@@ -10,6 +10,7 @@
 
 pub mod config;
 pub mod kind;
+pub mod prop;
 pub mod spawn;
 pub mod walker;
 
@@ -17,6 +18,7 @@ use serde::Serialize;
 
 pub use self::config::HazardsConfig;
 pub use self::kind::HazardKind;
+pub use self::prop::{Prop, PropKind};
 use self::walker::Walker;
 use crate::collision::{CollisionKind, Obb};
 use crate::map::LaneId;
@@ -24,36 +26,6 @@ use crate::route::Route;
 use crate::town::Town;
 use crate::traffic::Traffic;
 use crate::vehicle::VehicleState;
-
-/// What a prop is (its collision kind and colour follow).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
-#[serde(rename_all = "snake_case")]
-pub enum PropKind {
-    Cone,
-    Barrier,
-    /// A car parked on the shoulder that hides a walker.
-    ParkedCar,
-}
-
-impl PropKind {
-    /// What hitting it counts as.
-    #[must_use]
-    pub fn collision(self) -> CollisionKind {
-        match self {
-            PropKind::Cone | PropKind::Barrier => CollisionKind::Construction,
-            PropKind::ParkedCar => CollisionKind::ParkedCar,
-        }
-    }
-}
-
-/// A still object of a hazard.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Prop {
-    pub body: Obb,
-    /// Height in the camera, metres.
-    pub height: f32,
-    pub kind: PropKind,
-}
 
 /// The scripted behaviour of a hazard.
 #[derive(Debug, Clone, PartialEq)]

@@ -7,8 +7,7 @@
 //! waypoints are the route's, shifted by it) and, when no way round is clear, a point to stop at.
 
 pub mod avoid;
-
-use serde::{Deserialize, Serialize};
+pub mod kind;
 
 use crate::collision::Obb;
 use crate::hazards::Hazard;
@@ -17,29 +16,7 @@ use crate::town::Town;
 use crate::traffic::Traffic;
 use crate::vehicle::{VehicleParams, VehicleState};
 pub use avoid::AvoidPlanner;
-
-/// Which planner gives the waypoints.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
-pub enum PlannerKind {
-    /// The A* route as planned at reset (today's).
-    #[default]
-    #[serde(rename = "astar")]
-    Astar,
-    /// The A* route bent around perceived hazards and obstacles.
-    #[serde(rename = "astar+avoid")]
-    AstarAvoid,
-}
-
-impl PlannerKind {
-    /// The name in configuration and reports.
-    #[must_use]
-    pub fn name(self) -> &'static str {
-        match self {
-            PlannerKind::Astar => "astar",
-            PlannerKind::AstarAvoid => "astar+avoid",
-        }
-    }
-}
+pub use kind::PlannerKind;
 
 /// What a planner sees of the world each step.
 #[derive(Debug, Clone, Copy)]
