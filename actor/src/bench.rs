@@ -33,6 +33,10 @@ pub struct SimArgs {
     /// Print one JSON object on the last line of stdout.
     #[arg(long)]
     pub json: bool,
+    /// Give every episode a hazard (all kinds) and time the same steps without hazards too, in
+    /// the same run: the report adds both rates and their ratio.
+    #[arg(long)]
+    pub hazards: bool,
 }
 
 pub fn run(cmd: &BenchCommand) -> Result<()> {
@@ -47,13 +51,53 @@ fn sim(args: &SimArgs) -> Result<()> {
     let mut cfg = EnvConfig::default();
     cfg.traffic.vehicles = args.vehicles;
     cfg.camera = args.camera.map(|(width, height)| CameraConfig { width, height, ..CameraConfig::default() });
+    let plain = time_steps(cfg.clone(), args.steps)?;
+    let hazards = if args.hazards {
+        cfg.hazards = sim_core::hazards::HazardsConfig { rate: 1.0, ..Default::default() };
+        Some(time_steps(cfg, args.steps)?)
+    } else {
+        None
+    };
+    let (steps_per_sec, with_resets, episodes) = hazards.unwrap_or(plain);
+    if args.json {
+        let mut v = serde_json::json!({
+            "steps_per_sec": steps_per_sec.round(),
+            "vehicles": args.vehicles,
+            "camera": args.camera.map(|(w, h)| format!("{w}x{h}")),
+        });
+        if hazards.is_some() {
+            v["hazards"] = serde_json::json!(true);
+            v["steps_per_sec_without_hazards"] = serde_json::json!(plain.0.round());
+            v["ratio_to_without_hazards"] = serde_json::json!((steps_per_sec / plain.0 * 1000.0).round() / 1000.0);
+        }
+        println!("{v}");
+    } else {
+        println!(
+            "vehicles {}{}: {:.0} steps/s in Env::step, {:.0} steps/s with resets ({} episodes)",
+            args.vehicles,
+            if hazards.is_some() { ", a hazard per episode" } else { "" },
+            steps_per_sec,
+            with_resets,
+            episodes,
+        );
+        if hazards.is_some() {
+            println!("without hazards: {:.0} steps/s in Env::step; ratio {:.3}", plain.0, steps_per_sec / plain.0);
+        }
+    }
+    Ok(())
+}
+
+/// Times `steps` steps of random episodes under `cfg`: steps/s in `Env::step`, steps/s with
+/// resets, and the episodes driven.
+fn time_steps(cfg: EnvConfig, total: u64) -> Result<(f64, f64, u64)> {
+    let args_steps = total;
     let mut env = Env::new(load_town(None)?, cfg).context("creating the environment")?;
     let expert = Expert::default();
     let (mut step_time, mut reset_time) = (Duration::ZERO, Duration::ZERO);
     let (mut steps, mut episodes) = (0u64, 0u64);
     let wall = Instant::now();
     let mut last_report = Instant::now();
-    while steps < args.steps {
+    while steps < args_steps {
         let action = expert.act(&env);
         let t = Instant::now();
         let r = env.step(action)?;
@@ -72,25 +116,6 @@ fn sim(args: &SimArgs) -> Result<()> {
     }
     let steps_per_sec = steps as f64 / step_time.as_secs_f64();
     let with_resets = steps as f64 / (step_time + reset_time).as_secs_f64();
-    if args.json {
-        println!(
-            "{}",
-            serde_json::json!({
-                "steps_per_sec": steps_per_sec.round(),
-                "vehicles": args.vehicles,
-                "camera": args.camera.map(|(w, h)| format!("{w}x{h}")),
-            })
-        );
-    } else {
-        println!(
-            "vehicles {}: {:.0} steps/s in Env::step, {:.0} steps/s with resets ({} episodes), wall {:.1} s",
-            args.vehicles,
-            steps_per_sec,
-            with_resets,
-            episodes,
-            wall.elapsed().as_secs_f64()
-        );
-    }
-    tracing::info!(steps_per_sec, with_resets, episodes, "done");
-    Ok(())
+    tracing::info!(steps_per_sec, with_resets, episodes, wall_s = wall.elapsed().as_secs_f64(), "done");
+    Ok((steps_per_sec, with_resets, episodes))
 }

@@ -49,6 +49,11 @@ pub struct DriveArgs {
     /// Print one JSON object on the last line of stdout instead of a table.
     #[arg(long)]
     pub json: bool,
+    /// Give every run a hazard of this kind (stalled_car, pedestrian_crossing, cut_in,
+    /// hard_brake, construction, opposite_overtaker), with `--route random` on 120–220 m routes
+    /// of 60 s as `actor eval --suite hazards` drives them.
+    #[arg(long, value_name = "KIND")]
+    pub hazard: Option<String>,
 }
 
 /// Parses `WIDTHxHEIGHT`.
@@ -80,6 +85,12 @@ pub fn run(args: &DriveArgs) -> Result<()> {
     let mut cfg = EnvConfig::default();
     if let Some(n) = args.traffic {
         cfg.traffic.vehicles = n;
+    }
+    if let Some(name) = &args.hazard {
+        let kind = sim_core::hazards::HazardKind::from_name(name)
+            .with_context(|| format!("--hazard `{name}`: expected one of {}", sim_core::hazards::HazardKind::names()))?;
+        cfg.hazards = sim_core::hazards::HazardsConfig::only(kind);
+        (cfg.route_length_min, cfg.route_length_max, cfg.time_limit) = (120.0, 220.0, 600);
     }
     // Rendering costs time: only when recording, or for a policy that drives from the camera.
     cfg.camera =

@@ -30,6 +30,7 @@ def sim_config(
     action_set: str = "paper6",
     config: Optional[dict] = None,
     birdseye_size: int = 256,
+    hazards: Optional[float] = None,
 ) -> SimConfig:
     """Checks the environment's keyword arguments (see :class:`hybrid_drive.HybridDriveEnv`)."""
     if camera is not None:
@@ -48,6 +49,7 @@ def sim_config(
         action_set=action_set,
         config=json.dumps(config) if config is not None else None,
         birdseye_size=birdseye_size,
+        hazards=None if hazards is None else float(hazards),
     )
 
 

@@ -48,10 +48,12 @@ pub struct SimConfig {
 #[pymethods]
 impl SimConfig {
     /// `camera` is `(width, height)` or `None` (no image); `config` is a JSON object of
-    /// `EnvConfig` fields (the `learner config` `[env]` table) applied before the other arguments.
+    /// `EnvConfig` fields (the `learner config` `[env]` table) applied before the other arguments;
+    /// `hazards` is the probability that an episode gets a hazard (`[env.hazards] rate`; kinds
+    /// and ranges through `config`).
     #[new]
     #[pyo3(signature = (*, map=None, route="random", camera=Some((84, 84)), rgb=false, variant="hybrid", vehicles=None,
-                        parked_cars=None, path_features=false, action_set="paper6", config=None, birdseye_size=256))]
+                        parked_cars=None, path_features=false, action_set="paper6", config=None, birdseye_size=256, hazards=None))]
     #[allow(clippy::too_many_arguments)] // Python keyword arguments, all optional.
     fn new(
         map: Option<PathBuf>,
@@ -65,6 +67,7 @@ impl SimConfig {
         action_set: &str,
         config: Option<&str>,
         birdseye_size: u32,
+        hazards: Option<f32>,
     ) -> PyResult<Self> {
         let mut env: EnvConfig = match config {
             None => EnvConfig::default(),
@@ -81,6 +84,9 @@ impl SimConfig {
         }
         if let Some(n) = parked_cars {
             env.traffic.parked_cars = n;
+        }
+        if let Some(rate) = hazards {
+            env.hazards.rate = rate;
         }
         env.validate().map_err(|e| PyValueError::new_err(e.to_string()))?;
         if path_features && env.variant != Variant::Hybrid {

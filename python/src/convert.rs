@@ -13,7 +13,8 @@ use sim_core::env::{Observation, StepInfo};
 use crate::config::SimConfig;
 
 /// Names of the collision kinds; a vector env's `info["collision"]` holds indices into it (0: none).
-pub const COLLISION_KINDS: [&str; 7] = ["none", "vehicle", "parked_car", "building", "pole", "pillar", "off_road"];
+pub const COLLISION_KINDS: [&str; 9] =
+    ["none", "vehicle", "parked_car", "building", "pole", "pillar", "off_road", "pedestrian", "construction"];
 
 /// The index of `kind` in [`COLLISION_KINDS`].
 pub fn collision_code(kind: Option<CollisionKind>) -> i8 {
@@ -25,6 +26,8 @@ pub fn collision_code(kind: Option<CollisionKind>) -> i8 {
         Some(CollisionKind::Pole) => 4,
         Some(CollisionKind::Pillar) => 5,
         Some(CollisionKind::OffRoad) => 6,
+        Some(CollisionKind::Pedestrian) => 7,
+        Some(CollisionKind::Construction) => 8,
     }
 }
 
@@ -71,6 +74,9 @@ pub fn info<'py>(py: Python<'py>, info: &StepInfo, route: &'static str, seed: u6
     dict.set_item(intern!(py, "l"), f64::from(info.l))?;
     dict.set_item(intern!(py, "speed"), f64::from(info.speed))?;
     dict.set_item(intern!(py, "steps"), info.steps)?;
+    // The episode's hazard (`None` without one) and whether it has fired.
+    dict.set_item(intern!(py, "hazard"), info.hazard.map(|h| h.kind.name()))?;
+    dict.set_item(intern!(py, "hazard_triggered"), info.hazard.is_some_and(|h| h.triggered))?;
     dict.set_item(intern!(py, "route"), route)?;
     dict.set_item(intern!(py, "seed"), seed)?;
     Ok(dict)

@@ -23,6 +23,10 @@ pub enum CollisionKind {
     Pillar,
     /// A wheel left the drivable surface (onto a curb, sidewalk or grass).
     OffRoad,
+    /// A walker (a hazard's).
+    Pedestrian,
+    /// A cone or barrier of a construction closure.
+    Construction,
 }
 
 impl CollisionKind {
@@ -46,6 +50,8 @@ impl CollisionKind {
             Self::Pole => "pole",
             Self::Pillar => "pillar",
             Self::OffRoad => "off_road",
+            Self::Pedestrian => "pedestrian",
+            Self::Construction => "construction",
         }
     }
 }

@@ -7,13 +7,17 @@ use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::Serialize;
 
-use crate::camera::{BirdsEye, Camera, Image, SceneBox, car_box};
+use crate::camera::{BirdsEye, Camera, Image, SceneBox, car_box, prop_box, walker_box};
 use crate::collision::{CollisionKind, Obb, leaves_drivable_area};
 use crate::config::{ConfigError, EnvConfig, Variant};
+use crate::hazards::spawn::{feasible, place};
+use crate::hazards::walker::WALKER_HEIGHT;
+use crate::hazards::{Hazard, HazardInfo};
 use crate::map::LaneId;
 use crate::math::{Vec2, left_normal};
 pub use crate::path_features::PATH_FEATURES;
-use crate::path_features::path_features;
+use crate::path_features::{path_features, path_features_along};
+use crate::planner::{Detour, LocalPlanner, Planner, WorldView};
 use crate::reward::{Outcome, RewardTerms};
 use crate::route::{Route, RouteTracker, Tracking};
 use crate::scenario::{Scenario, eval_route, random_route};
@@ -53,6 +57,8 @@ pub struct StepInfo {
     pub reward_terms: RewardTerms,
     /// Steps since reset.
     pub steps: u32,
+    /// The episode's hazard, if it has one.
+    pub hazard: Option<HazardInfo>,
 }
 
 /// The result of one step.
@@ -91,6 +97,10 @@ pub struct Env {
     pub parked: Vec<Obb>,
     pub route: Route,
     pub tracking: Tracking,
+    /// The episode's hazard (see `hazards`), unknown to the route and the observation.
+    pub hazard: Option<Hazard>,
+    /// The planner of the waypoints (`[env] planner`).
+    planner: LocalPlanner,
     rng: ChaCha8Rng,
     tracker: RouteTracker,
     steps: u32,
@@ -100,6 +110,8 @@ pub struct Env {
     clock: u64,
     ego_hold: Option<LaneId>,
     ego_request: Option<EgoRequest>,
+    /// Junctions the ego entered without holding their connector, this episode.
+    right_of_way_violations: u32,
     done: bool,
     last_info: StepInfo,
     camera: Option<Camera>,
@@ -113,6 +125,7 @@ impl Env {
     pub fn new(town: Arc<Town>, cfg: EnvConfig) -> Result<Self, EnvError> {
         cfg.validate()?;
         let camera = cfg.camera.as_ref().map(Camera::new).transpose()?;
+        let planner_kind = cfg.planner;
         let traffic = Traffic::empty(&town, cfg.traffic.idm, cfg.vehicle);
         let dummy = crate::route::Route {
             path: crate::polyline::Polyline::new([Vec2::ZERO, Vec2::X]).expect("two points"),
@@ -127,6 +140,8 @@ impl Env {
             traffic,
             parked: Vec::new(),
             route: dummy,
+            hazard: None,
+            planner: LocalPlanner::new(planner_kind),
             tracking: Tracking { d: 0.0, s: 0.0, lateral: 0.0 },
             rng: ChaCha8Rng::seed_from_u64(0),
             tracker: RouteTracker::default(),
@@ -136,6 +151,7 @@ impl Env {
             clock: 0,
             ego_hold: None,
             ego_request: None,
+            right_of_way_violations: 0,
             done: true,
             last_info: StepInfo {
                 d: 0.0,
@@ -146,6 +162,7 @@ impl Env {
                 arrived: false,
                 reward_terms: RewardTerms::default(),
                 steps: 0,
+                hazard: None,
             },
             camera,
             image: Image::new(0, 0, 1),
@@ -158,13 +175,32 @@ impl Env {
     /// Starts an episode. Everything random in it (route, traffic, parking) comes from `seed`.
     pub fn reset(&mut self, seed: u64, scenario: Scenario) -> Result<Observation, EnvError> {
         self.rng = ChaCha8Rng::seed_from_u64(seed);
+        // The hazard comes from a stream of its own, so that hazards off (or an episode drawn
+        // without one) leaves everything else as it was.
+        let mut hazard_rng = ChaCha8Rng::seed_from_u64(seed);
+        hazard_rng.set_stream(HAZARD_STREAM);
+        let hz = &self.cfg.hazards;
+        let kind =
+            (hz.rate > 0.0 && hazard_rng.random_bool(f64::from(hz.rate))).then(|| hz.kinds[hazard_rng.random_range(0..hz.kinds.len())]);
         let cfg = &self.cfg;
         let (route, time_limit) = match scenario {
-            Scenario::Random => (
-                random_route(&self.town, cfg.route_length_min, cfg.route_length_max, cfg.waypoint_spacing, &mut self.rng)
-                    .ok_or(EnvError::NoRandomRoute { min: cfg.route_length_min, max: cfg.route_length_max })?,
-                cfg.time_limit,
-            ),
+            Scenario::Random => {
+                let draw = |rng: &mut ChaCha8Rng| {
+                    random_route(&self.town, cfg.route_length_min, cfg.route_length_max, cfg.waypoint_spacing, rng)
+                        .ok_or(EnvError::NoRandomRoute { min: cfg.route_length_min, max: cfg.route_length_max })
+                };
+                let mut route = draw(&mut self.rng)?;
+                // A hazard episode draws routes until one has room for its kind.
+                if let Some(k) = kind {
+                    for _ in 0..HAZARD_ROUTE_TRIES {
+                        if feasible(k, hz, &self.town, &route).is_some() {
+                            break;
+                        }
+                        route = draw(&mut self.rng)?;
+                    }
+                }
+                (route, cfg.time_limit)
+            }
             Scenario::Eval(r) => {
                 (eval_route(&self.town, r, cfg.waypoint_spacing).ok_or(EnvError::ScenarioNotOnMap(r.name()))?, cfg.eval_time_limit)
             }
@@ -180,6 +216,7 @@ impl Env {
         self.l_prev = start.distance(self.route.destination());
         self.ego_hold = None;
         self.ego_request = None;
+        self.right_of_way_violations = 0;
         self.done = false;
 
         self.traffic = Traffic::empty(&self.town, self.cfg.traffic.idm, self.cfg.vehicle);
@@ -194,6 +231,17 @@ impl Env {
         let avoid = [start, self.route.path.point_at(15.0)];
         self.traffic.spawn(&self.town, self.cfg.traffic.vehicles, &avoid, self.cfg.traffic.spawn_clearance, &mut self.rng);
         self.parked = self.place_parked_cars(self.cfg.traffic.parked_cars, start);
+        self.hazard = kind.and_then(|k| place(k, &self.cfg.hazards, &self.town, &self.route, &mut self.traffic, &mut hazard_rng));
+        if let Some(h) = &self.hazard {
+            // Shoulders free around the hazard: room to pass it, and no second obstacle.
+            let route = &self.route;
+            self.parked.retain(|p| {
+                let proj = route.path.project(p.centre);
+                !(proj.s > h.s - 25.0 && proj.s < h.s + 70.0 && proj.distance < 8.0)
+            });
+        }
+        self.planner = LocalPlanner::new(self.cfg.planner);
+        self.update_planner();
         self.last_info = self.info_now(None, false, RewardTerms::default());
         self.render();
         Ok(self.observation())
@@ -212,12 +260,16 @@ impl Env {
         if granted {
             self.ego_hold = self.ego_request.take().map(|r| r.connector);
         }
+        if let Some(h) = &mut self.hazard {
+            h.step(&self.town, &self.route, &mut self.traffic, &self.ego, self.tracking.s, dt);
+        }
         let body = self.ego_body();
         let view = EgoView { body, speed: self.ego.speed, hold: self.ego_hold };
         self.traffic.step(&self.town, &view, dt, &mut self.rng);
         self.clock += 1;
         self.steps += 1;
 
+        self.update_planner();
         let collision = self.collision(&body);
         let l = self.ego.pos.distance(self.route.destination());
         let arrived = collision.is_none() && self.cfg.reward.arrived(l);
@@ -226,7 +278,8 @@ impl Env {
             (None, true) => Outcome::Arrived,
             (None, false) => Outcome::Driving,
         };
-        let terms = self.cfg.reward.reward(self.cfg.variant, outcome, self.ego.speed, l, self.l_prev, self.tracking.d);
+        let d = self.planned_tracking().d;
+        let terms = self.cfg.reward.reward(self.cfg.variant, outcome, self.ego.speed, l, self.l_prev, d);
         self.l_prev = l;
         let terminated = outcome != Outcome::Driving;
         let truncated = !terminated && self.steps >= self.time_limit;
@@ -241,7 +294,7 @@ impl Env {
     pub fn observation(&self) -> Observation {
         Observation {
             speed: self.ego.speed,
-            d: (self.cfg.variant == Variant::Hybrid).then_some(self.tracking.d),
+            d: (self.cfg.variant == Variant::Hybrid).then(|| self.planned_tracking().d),
             path: (self.cfg.variant == Variant::Hybrid).then(|| self.path_features()),
             image: self.camera.is_some().then(|| self.image.clone()),
         }
@@ -254,7 +307,63 @@ impl Env {
     /// ahead, which previews turns and curves. Defined in `path_features.rs`.
     #[must_use]
     pub fn path_features(&self) -> [f32; PATH_FEATURES] {
-        path_features(&self.route, &self.tracking, &self.ego)
+        match self.planner.detour() {
+            None => path_features(&self.route, &self.tracking, &self.ego),
+            Some(d) => path_features_along(|s| bent_point(&self.route, &d, s), &self.planned_tracking(), &self.ego),
+        }
+    }
+
+    /// The planner's path at route arc length `s`: the route's point, shifted by its detour.
+    #[must_use]
+    pub fn planned_point(&self, s: f32) -> Vec2 {
+        match self.planner.detour() {
+            None => self.route.path.point_at(s),
+            Some(d) => bent_point(&self.route, &d, s),
+        }
+    }
+
+    /// The planner's detour from the route, if it asks for one.
+    #[must_use]
+    pub fn detour(&self) -> Option<Detour> {
+        self.planner.detour()
+    }
+
+    /// The route arc length the planner asks to stop at (no way round is clear), if any.
+    #[must_use]
+    pub fn planned_stop(&self) -> Option<f32> {
+        self.planner.stop_at()
+    }
+
+    /// The ego measured against the planner's path: d to its closest (bent) waypoint and the
+    /// lateral offset from it. The route's tracking when the planner follows the route.
+    #[must_use]
+    pub fn planned_tracking(&self) -> Tracking {
+        let Some(det) = self.planner.detour() else { return self.tracking };
+        let s = self.tracking.s;
+        let spacing = self.cfg.waypoint_spacing;
+        let len = self.route.length();
+        let i = self.tracker.waypoint;
+        let d = (i.saturating_sub(1)..(i + 3).min(self.route.waypoints.len()))
+            .map(|k| {
+                let ws = (k as f32 * spacing).min(len);
+                (self.route.waypoints[k] + left_normal(self.route.path.tangent_at(ws)) * det.offset_at(ws)).distance(self.ego.pos)
+            })
+            .fold(f32::INFINITY, f32::min);
+        Tracking { d, s, lateral: self.tracking.lateral - det.offset_at(s) }
+    }
+
+    fn update_planner(&mut self) {
+        let world = WorldView {
+            town: &self.town,
+            route: &self.route,
+            ego: &self.ego,
+            ego_s: self.tracking.s,
+            vehicle: &self.cfg.vehicle,
+            traffic: &self.traffic,
+            parked: &self.parked,
+            hazard: self.hazard.as_ref(),
+        };
+        self.planner.update(&world);
     }
 
     /// The last front-camera image (empty without a camera).
@@ -277,6 +386,10 @@ impl Env {
         }
         for (i, body) in self.parked.iter().enumerate() {
             self.scene.push(car_box(*body, i + 3));
+        }
+        if let Some(h) = &self.hazard {
+            self.scene.extend(h.props.iter().enumerate().map(|(i, p)| prop_box(p, i + 5)));
+            self.scene.extend(h.walkers.iter().map(|w| walker_box(w.body(), WALKER_HEIGHT)));
         }
     }
 
@@ -311,6 +424,13 @@ impl Env {
     #[must_use]
     pub fn ego_body(&self) -> Obb {
         Obb::new(self.ego.pos, self.cfg.vehicle.half_extents(), self.ego.heading)
+    }
+
+    /// How many junctions the ego entered this episode without right of way (its connector not
+    /// granted by the junction's reservations).
+    #[must_use]
+    pub fn right_of_way_violations(&self) -> u32 {
+        self.right_of_way_violations
     }
 
     /// The junction connector the ego vehicle holds (may cross), if any.
@@ -350,12 +470,15 @@ impl Env {
         for p in &self.parked {
             h.write(p.centre.x.to_bits() as u64);
         }
+        if let Some(hz) = &self.hazard {
+            hz.hash_into(&mut |x| h.write(x));
+        }
         h.0
     }
 
     fn info_now(&self, collision: Option<CollisionKind>, arrived: bool, reward_terms: RewardTerms) -> StepInfo {
         StepInfo {
-            d: self.tracking.d,
+            d: self.planned_tracking().d,
             l: self.ego.pos.distance(self.route.destination()),
             speed: self.ego.speed,
             collision,
@@ -363,6 +486,7 @@ impl Env {
             arrived,
             reward_terms,
             steps: self.steps,
+            hazard: self.hazard.as_ref().map(Hazard::info),
         }
     }
 
@@ -381,6 +505,7 @@ impl Env {
         if on_route && self.town.is_connector(current) && self.ego_hold.is_none() {
             // Entered without a grant: it is there all the same, and traffic must know.
             self.ego_hold = Some(current);
+            self.right_of_way_violations += 1;
             self.ego_request = None;
         }
         match self.next_connector() {
@@ -410,6 +535,9 @@ impl Env {
         }
         if self.parked.iter().any(overlaps) {
             return Some(CollisionKind::ParkedCar);
+        }
+        if let Some(kind) = self.hazard.as_ref().and_then(|h| h.hit(body)) {
+            return Some(kind);
         }
         if let Some(kind) = self.town.statics.hit(body) {
             return Some(kind);
@@ -454,6 +582,16 @@ impl Env {
         out
     }
 }
+
+/// A route point shifted sideways by a detour.
+fn bent_point(route: &Route, d: &Detour, s: f32) -> Vec2 {
+    route.path.point_at(s) + left_normal(route.path.tangent_at(s)) * d.offset_at(s)
+}
+
+/// The stream of an episode's seed that hazards draw from (`HAZ` in ASCII).
+const HAZARD_STREAM: u64 = 0x0048_415a;
+/// Random routes a hazard episode draws at most to find one with room for its kind.
+const HAZARD_ROUTE_TRIES: usize = 40;
 
 /// 64-bit FNV-1a over words.
 #[derive(Debug)]

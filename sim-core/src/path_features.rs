@@ -30,9 +30,16 @@ pub fn near_preview(v: f32) -> f32 {
 /// left), and the same angle to the route point 25 m ahead, which previews turns and curves.
 #[must_use]
 pub fn path_features(route: &Route, tracking: &Tracking, ego: &VehicleState) -> [f32; PATH_FEATURES] {
+    path_features_along(|s| route.path.point_at(s), tracking, ego)
+}
+
+/// The same features along any path given by its point at each route arc length (a planner's
+/// bent route); `tracking` measured against it.
+#[must_use]
+pub fn path_features_along(point_at: impl Fn(f32) -> crate::math::Vec2, tracking: &Tracking, ego: &VehicleState) -> [f32; PATH_FEATURES] {
     let s = tracking.s;
     let angle_to = |ahead: f32| {
-        let to = route.path.point_at(s + ahead) - ego.pos;
+        let to = point_at(s + ahead) - ego.pos;
         if to.length_squared() < 1e-6 { 0.0 } else { wrap_angle(heading_of(to) - ego.heading) }
     };
     [tracking.lateral, angle_to(near_preview(ego.speed)), angle_to(FAR_PREVIEW)]

@@ -68,6 +68,9 @@ impl IdmParams {
 
 /// Look-ahead for leaders and stop lines, metres.
 const LOOKAHEAD: f32 = 80.0;
+/// How far ahead a car looks for a hazard's walkers and closures, metres: its braking distance
+/// from the speed limits of towns, with a margin.
+const YIELD_LOOKAHEAD: f32 = 40.0;
 /// A reservation is released once the car's centre is this far along the exit lane, metres: half a
 /// car length and a margin, so that its rear has left the connector.
 pub const RELEASE_DISTANCE: f32 = 2.75;
@@ -95,6 +98,11 @@ pub struct TrafficCar {
     pub parked: bool,
     /// False while waiting off the map to re-enter after reaching a dead end.
     pub active: bool,
+    /// An acceleration imposed by a hazard's script instead of the IDM's (None for traffic).
+    pub forced_accel: Option<f32>,
+    /// Sideways offset from the lane's centre line, metres, positive to the left (a hazard's car
+    /// changing lanes or pulling out; 0 for traffic).
+    pub lateral: f32,
     segment: usize,
 }
 
@@ -120,6 +128,9 @@ pub struct Traffic {
     pub cars: Vec<TrafficCar>,
     pub idm: IdmParams,
     pub params: VehicleParams,
+    /// Things every car stops for when they stand in its lane ahead: a hazard's walkers and
+    /// closures (empty without hazards).
+    pub yield_to: Vec<Obb>,
     /// Car indices on each lane, sorted by `s` (rebuilt every step).
     lane_cars: Vec<Vec<u32>>,
     touched: Vec<LaneId>,
@@ -130,7 +141,15 @@ impl Traffic {
     /// Traffic with no cars.
     #[must_use]
     pub fn empty(town: &Town, idm: IdmParams, params: VehicleParams) -> Self {
-        Self { cars: Vec::new(), idm, params, lane_cars: vec![Vec::new(); town.map.lanes.len()], touched: Vec::new(), accel: Vec::new() }
+        Self {
+            cars: Vec::new(),
+            idm,
+            params,
+            yield_to: Vec::new(),
+            lane_cars: vec![Vec::new(); town.map.lanes.len()],
+            touched: Vec::new(),
+            accel: Vec::new(),
+        }
     }
 
     /// Places `n` cars on random road lanes, `SPAWN_SPACING` apart and at least `keep_clear`
@@ -170,8 +189,52 @@ impl Traffic {
             requested_at: None,
             parked: true,
             active: true,
+            forced_accel: None,
+            lateral: 0.0,
             segment,
         });
+        self.rebuild_lanes();
+    }
+
+    /// Adds a car driving on `lane` at `s` with `speed`, heading for `next` (a hazard's car).
+    /// Returns its index.
+    pub fn add_driving_on_lane(&mut self, town: &Town, lane: LaneId, s: f32, speed: f32, next: Option<LaneId>) -> usize {
+        let (pos, heading, segment) = town.map.lanes[lane].path.pose_at_hinted(s, 0);
+        self.cars.push(TrafficCar {
+            lane,
+            s,
+            speed,
+            desired_speed: speed,
+            next,
+            pos,
+            heading,
+            hold: None,
+            requested_at: None,
+            parked: false,
+            active: true,
+            forced_accel: None,
+            lateral: 0.0,
+            segment,
+        });
+        self.rebuild_lanes();
+        self.cars.len() - 1
+    }
+
+    /// Takes car `i` off the map (it re-enters elsewhere, away from the ego, as at a dead end).
+    pub fn remove(&mut self, i: usize) {
+        self.cars[i].active = false;
+        self.cars[i].hold = None;
+        self.rebuild_lanes();
+    }
+
+    /// Moves car `i` onto `lane` at `s` with a sideways offset (a hazard's lane change).
+    pub fn move_to_lane(&mut self, town: &Town, i: usize, lane: LaneId, s: f32, lateral: f32) {
+        let c = &mut self.cars[i];
+        c.lane = lane;
+        c.s = s;
+        c.segment = 0;
+        c.lateral = lateral;
+        c.next = town.map.lanes[lane].successors.first().copied();
         self.rebuild_lanes();
     }
 
@@ -198,6 +261,8 @@ impl Traffic {
             requested_at: None,
             parked: false,
             active: true,
+            forced_accel: None,
+            lateral: 0.0,
             segment,
         })
     }
@@ -301,7 +366,12 @@ impl Traffic {
     pub fn step(&mut self, town: &Town, ego: &EgoView, dt: f32, rng: &mut ChaCha8Rng) {
         self.accel.clear();
         for i in 0..self.cars.len() {
-            let a = if self.cars[i].active && !self.cars[i].parked { self.car_accel(town, i, ego) } else { 0.0 };
+            let c = &self.cars[i];
+            let a = match c.forced_accel {
+                Some(f) if c.active => f,
+                _ if c.active && !c.parked => self.car_accel(town, i, ego),
+                _ => 0.0,
+            };
             self.accel.push(a);
         }
         for i in 0..self.cars.len() {
@@ -342,7 +412,10 @@ impl Traffic {
                 }
             }
             if c.active {
-                let (pos, heading, seg) = town.map.lanes[c.lane].path.pose_at_hinted(c.s, c.segment);
+                let (mut pos, heading, seg) = town.map.lanes[c.lane].path.pose_at_hinted(c.s, c.segment);
+                if c.lateral != 0.0 {
+                    pos += crate::math::left_normal(crate::math::dir(heading)) * c.lateral;
+                }
                 (c.pos, c.heading, c.segment) = (pos, heading, seg);
             }
         }
@@ -432,6 +505,17 @@ impl Traffic {
                 {
                     consider(path.length() - c.s + p.s - half - ego.body.half.x, ego.speed);
                 }
+            }
+        }
+        // A hazard's walkers and closures standing in the lane ahead.
+        for o in &self.yield_to {
+            if c.pos.distance_squared(o.centre) > YIELD_LOOKAHEAD * YIELD_LOOKAHEAD {
+                continue;
+            }
+            let path = &lanes[c.lane].path;
+            let p = path.project_range(o.centre, c.segment, c.segment + YIELD_LOOKAHEAD as usize);
+            if p.s > c.s && p.lateral.abs() < lanes[c.lane].width / 2.0 + o.half.length() {
+                consider(p.s - c.s - half - o.half.length() - 1.0, 0.0);
             }
         }
         self.idm.accel(c.speed, v0, leader)

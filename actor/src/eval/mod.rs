@@ -20,11 +20,14 @@ use clap::Args;
 pub mod periodic;
 pub mod report;
 pub mod run;
+pub mod score;
+pub mod suite;
 
 use crate::greedy::{EPSILON, GreedyAgent, load_checkpoint};
 use crate::routes::{parse_routes, town_by_name_or_file};
 use report::table;
 use run::{Agent, Driver, EvalOptions, evaluate, model_based};
+use suite::{Suite, SuiteOptions, evaluate_suite, model_based_avoid, suite_table};
 
 #[derive(Debug, Args)]
 pub struct EvalArgs {
@@ -62,6 +65,12 @@ pub struct EvalArgs {
     /// Also write the JSON object to this file.
     #[arg(long, value_name = "FILE")]
     pub json_out: Option<PathBuf>,
+    /// Score the field's way (driving score = route completion × infraction penalty) on a suite:
+    /// `hazards` (one scenario per hazard kind, on random routes of the town) or `clean` (the
+    /// seven routes), beside the `model-based` and `model-based-avoid` baselines. `--route` does
+    /// not apply.
+    #[arg(long, value_name = "SUITE")]
+    pub suite: Option<String>,
 }
 
 /// The name of a checkpoint in the table: its run directory's name.
@@ -76,6 +85,9 @@ pub fn run(args: &EvalArgs) -> Result<()> {
     if args.name.len() > args.checkpoint.len() {
         bail!("{} --name given for {} --checkpoint: give at most one name per checkpoint", args.name.len(), args.checkpoint.len());
     }
+    if let Some(name) = &args.suite {
+        return run_suite(args, name);
+    }
     let mut routes = Vec::new();
     for name in args.route.split(',').map(str::trim).filter(|s| !s.is_empty()) {
         routes.extend(parse_routes(name)?);
@@ -84,17 +96,7 @@ pub fn run(args: &EvalArgs) -> Result<()> {
         bail!("--route `{}` names no route", args.route);
     }
     let mut agents = vec![model_based()];
-    for (k, path) in args.checkpoint.iter().enumerate() {
-        let agent = load_checkpoint(path)?;
-        let mut name = args.name.get(k).cloned().unwrap_or_else(|| default_name(&agent, path));
-        let base = name.clone();
-        let mut n = 2;
-        while agents.iter().any(|a| a.name == name) {
-            name = format!("{base}#{n}");
-            n += 1;
-        }
-        agents.push(Agent { name, driver: Driver::Greedy(Box::new(agent)) });
-    }
+    add_checkpoints(args, &mut agents)?;
     let town = town_by_name_or_file(&args.town)?;
     let opts = EvalOptions { routes, runs: args.runs, seed: args.seed, traffic: args.traffic, town, progress: true };
     eprintln!(
@@ -115,6 +117,50 @@ pub fn run(args: &EvalArgs) -> Result<()> {
         println!("{json}");
     } else {
         print!("{}", table(&report, args.markdown));
+    }
+    Ok(())
+}
+
+/// The checkpoints of `--checkpoint` as agents after `agents`, each under a unique name.
+fn add_checkpoints(args: &EvalArgs, agents: &mut Vec<Agent>) -> Result<()> {
+    for (k, path) in args.checkpoint.iter().enumerate() {
+        let agent = load_checkpoint(path)?;
+        let mut name = args.name.get(k).cloned().unwrap_or_else(|| default_name(&agent, path));
+        let base = name.clone();
+        let mut n = 2;
+        while agents.iter().any(|a| a.name == name) {
+            name = format!("{base}#{n}");
+            n += 1;
+        }
+        agents.push(Agent { name, driver: Driver::Greedy(Box::new(agent)) });
+    }
+    Ok(())
+}
+
+/// `actor eval --suite`.
+fn run_suite(args: &EvalArgs, name: &str) -> Result<()> {
+    let suite = Suite::from_name(name)?;
+    let mut agents = vec![model_based(), model_based_avoid()];
+    add_checkpoints(args, &mut agents)?;
+    let town = town_by_name_or_file(&args.town)?;
+    let opts = SuiteOptions { suite, runs: args.runs, seed: args.seed, traffic: args.traffic, town, progress: true };
+    eprintln!(
+        "scoring {} agent(s) on suite `{}` of {} × {} run(s) (seeds {}..), greedy (ε = {EPSILON})",
+        agents.len(),
+        suite.name(),
+        opts.town.map.name,
+        opts.runs,
+        opts.seed
+    );
+    let report = evaluate_suite(&mut agents, &opts)?;
+    let json = serde_json::to_string(&report)?;
+    if let Some(path) = &args.json_out {
+        write_atomically(path, json.as_bytes())?;
+    }
+    if args.json {
+        println!("{json}");
+    } else {
+        print!("{}", suite_table(&report, args.markdown));
     }
     Ok(())
 }

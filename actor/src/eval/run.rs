@@ -35,7 +35,7 @@ pub enum Driver {
 
 /// The environment every agent is evaluated in: the `paper` preset's, scored with the paper's
 /// reward (hybrid variant), with the agent's camera.
-fn eval_env_config(camera: Option<CameraConfig>, traffic: Option<usize>) -> EnvConfig {
+pub(crate) fn eval_env_config(camera: Option<CameraConfig>, traffic: Option<usize>) -> EnvConfig {
     let mut env = RunConfig::preset("paper").expect("the paper preset exists").env;
     env.variant = Variant::Hybrid;
     env.camera = camera;

@@ -10,4 +10,4 @@ pub(crate) mod scene;
 pub use birdseye::{BirdsEye, BirdsEyeConfig};
 pub use front::{Camera, CameraConfig};
 pub use image::Image;
-pub use scene::{CAR_HEIGHT, SceneBox, car_box};
+pub use scene::{CAR_HEIGHT, SceneBox, car_box, prop_box, walker_box};

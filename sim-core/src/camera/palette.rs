@@ -1,5 +1,6 @@
 //! Colours of the world, shared by both views.
 
+use crate::hazards::prop::PropKind;
 use crate::map::{ObstacleKind, SHADE, Surface};
 
 pub const SKY_TOP: [u8; 3] = [120, 170, 225];
@@ -12,6 +13,19 @@ pub const EGO: [u8; 3] = [220, 30, 30];
 pub const ROUTE: [u8; 3] = [40, 200, 80];
 pub const WAYPOINT: [u8; 3] = [30, 120, 255];
 pub const CLOSEST_WAYPOINT: [u8; 3] = [255, 0, 255];
+
+/// Walkers: a colour no car, building or surface has.
+pub const WALKER: [u8; 3] = [200, 40, 170];
+
+/// The colour of a hazard's prop.
+#[must_use]
+pub fn prop(kind: PropKind, index: usize) -> [u8; 3] {
+    match kind {
+        PropKind::Cone => [240, 120, 20],
+        PropKind::Barrier => [245, 245, 240],
+        PropKind::ParkedCar => CARS[index % CARS.len()],
+    }
+}
 
 /// Car body colours, picked by vehicle index.
 pub const CARS: [[u8; 3]; 8] =

@@ -30,6 +30,18 @@ pub fn car_box(body: Obb, index: usize) -> SceneBox {
     SceneBox { footprint: body, bottom: 0.0, top: CAR_HEIGHT, colour: palette::CARS[index % palette::CARS.len()] }
 }
 
+/// A walker as a scene box: 1.8 m tall, in its own colour.
+#[must_use]
+pub fn walker_box(body: Obb, height: f32) -> SceneBox {
+    SceneBox { footprint: body, bottom: 0.0, top: height, colour: palette::WALKER }
+}
+
+/// A hazard's prop (cone, barrier, parked car) as a scene box.
+#[must_use]
+pub fn prop_box(prop: &crate::hazards::prop::Prop, index: usize) -> SceneBox {
+    SceneBox { footprint: prop.body, bottom: 0.0, top: prop.height, colour: palette::prop(prop.kind, index) }
+}
+
 /// A map's static scenery as the renderers draw it: its obstacles, then its overpass decks.
 #[must_use]
 pub fn static_boxes(map: &Map) -> Vec<SceneBox> {

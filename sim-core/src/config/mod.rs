@@ -14,6 +14,8 @@ use serde::{Deserialize, Serialize};
 pub use self::error::ConfigError;
 pub use self::variant::Variant;
 use crate::camera::CameraConfig;
+use crate::hazards::config::HazardsConfig;
+use crate::planner::kind::PlannerKind;
 use crate::reward::RewardConfig;
 use crate::traffic::IdmParams;
 use crate::vehicle::VehicleParams;
@@ -40,6 +42,11 @@ pub struct EnvConfig {
     pub vehicle: VehicleParams,
     /// The front camera; `None` renders no image (default: 84×84 gray).
     pub camera: Option<CameraConfig>,
+    /// Hazards the planner does not know (default: none).
+    pub hazards: HazardsConfig,
+    /// The planner giving the waypoints: `astar` (the global route, default) or `astar+avoid`
+    /// (bent around perceived hazards and obstacles).
+    pub planner: PlannerKind,
 }
 
 impl Default for EnvConfig {
@@ -56,6 +63,8 @@ impl Default for EnvConfig {
             traffic: TrafficConfig::default(),
             vehicle: VehicleParams::default(),
             camera: Some(CameraConfig::default()),
+            hazards: HazardsConfig::default(),
+            planner: PlannerKind::Astar,
         }
     }
 }
@@ -143,7 +152,7 @@ impl EnvConfig {
         if let Some(c) = &self.camera {
             c.validate()?;
         }
-        Ok(())
+        self.hazards.validate()
     }
 }
 

@@ -1,0 +1,447 @@
+//! `actor eval --suite hazards|clean`: every agent scored the field's way (`score.rs`) on a
+//! suite of scenarios, `--runs` seeded variations each (run k with seed S + k), in lockstep as
+//! `actor eval` drives. `hazards`: one scenario per hazard kind, on random routes of the town with
+//! room for it (different routes, trigger distances, speeds and traffic per seed); `clean`: the
+//! seven evaluation routes without hazards, scored the same way, so that the two read side by side.
+//!
+//! Besides the checkpoints, two baselines: `model-based` (the A* route and today's controller:
+//! it yields to the cars in its corridor and knows nothing of hazards) and `model-based-avoid`
+//! (the `astar+avoid` planner and the same controller, which also brakes for walkers).
+
+use std::collections::BTreeMap;
+use std::time::Instant;
+
+use anyhow::{Context, Result, bail};
+use serde::Serialize;
+use sim_core::env::Env;
+use sim_core::expert::Expert;
+use sim_core::hazards::{HazardKind, HazardsConfig};
+use sim_core::planner::PlannerKind;
+use sim_core::scenario::{EvalRoute, Scenario};
+use sim_core::vehicle::Action;
+
+use crate::episode::Episode;
+use crate::eval::run::{Agent, Driver, eval_env_config};
+use crate::eval::score::{Infraction, ProgressWatch, RunEnd, RunScore, score_run};
+use crate::greedy::greedy_actions;
+use crate::policy::Policy;
+
+/// A suite of scenarios.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Suite {
+    Hazards,
+    Clean,
+}
+
+impl Suite {
+    /// The suite named on the command line.
+    pub fn from_name(name: &str) -> Result<Self> {
+        match name {
+            "hazards" => Ok(Self::Hazards),
+            "clean" => Ok(Self::Clean),
+            other => bail!("--suite `{other}`: expected `hazards` or `clean`"),
+        }
+    }
+
+    #[must_use]
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Hazards => "hazards",
+            Self::Clean => "clean",
+        }
+    }
+}
+
+/// The hazard kinds the suite drives.
+pub const SUITE_KINDS: [HazardKind; 6] = [
+    HazardKind::StalledCar,
+    HazardKind::PedestrianCrossing,
+    HazardKind::CutIn,
+    HazardKind::HardBrake,
+    HazardKind::Construction,
+    HazardKind::OppositeOvertaker,
+];
+
+/// Random routes of hazard scenarios, metres: long enough for a hazard 45–75 m in and room after.
+const HAZARD_ROUTE_LENGTH: (f32, f32) = (120.0, 220.0);
+/// Steps of a hazard run (60 s: room to wait, pass and be blocked).
+const HAZARD_TIME_LIMIT: u32 = 600;
+
+/// The `model-based-avoid` baseline.
+#[must_use]
+pub fn model_based_avoid() -> Agent {
+    Agent { name: "model-based-avoid".into(), driver: Driver::ModelBased(Policy::Expert(Expert::avoiding())) }
+}
+
+/// The planner an agent drives with.
+fn planner_of(agent: &Agent) -> PlannerKind {
+    match &agent.driver {
+        Driver::ModelBased(Policy::Expert(e)) if e.sees_hazards => PlannerKind::AstarAvoid,
+        Driver::ModelBased(_) => PlannerKind::Astar,
+        Driver::Greedy(g) => g.cfg.env.planner,
+    }
+}
+
+/// One scenario of a suite: its name, what episodes start from, and its hazards.
+struct ScenarioSpec {
+    name: &'static str,
+    scenario: Scenario,
+    hazard: Option<HazardKind>,
+}
+
+fn scenarios(suite: Suite) -> Vec<ScenarioSpec> {
+    match suite {
+        Suite::Hazards => {
+            SUITE_KINDS.iter().map(|&k| ScenarioSpec { name: k.name(), scenario: Scenario::Random, hazard: Some(k) }).collect()
+        }
+        Suite::Clean => {
+            EvalRoute::ALL.iter().map(|&r| ScenarioSpec { name: r.name(), scenario: Scenario::Eval(r), hazard: None }).collect()
+        }
+    }
+}
+
+/// What to evaluate.
+#[derive(Debug, Clone)]
+pub struct SuiteOptions {
+    pub suite: Suite,
+    pub runs: u32,
+    pub seed: u64,
+    pub traffic: Option<usize>,
+    pub town: std::sync::Arc<sim_core::town::Town>,
+    pub progress: bool,
+}
+
+/// One scenario's scores for one agent.
+#[derive(Debug, Clone, Serialize)]
+pub struct ScenarioReport {
+    pub scenario: &'static str,
+    pub driving_score: f64,
+    pub route_completion: f64,
+    pub success_rate: f64,
+    pub mean_return: f64,
+    pub runs: Vec<RunScore>,
+}
+
+/// One agent over the suite.
+#[derive(Debug, Clone, Serialize)]
+pub struct SuiteAgentReport {
+    pub name: String,
+    pub planner: &'static str,
+    pub driving_score: f64,
+    pub route_completion: f64,
+    pub infraction_penalty: f64,
+    pub success_rate: f64,
+    /// Infractions over the route kilometres driven.
+    pub infractions_per_km: f64,
+    /// Count of each infraction kind over all runs.
+    pub infractions: BTreeMap<&'static str, u32>,
+    pub scenarios: Vec<ScenarioReport>,
+}
+
+/// `{"suite", "town", "runs", "agents": [...]}`.
+#[derive(Debug, Clone, Serialize)]
+pub struct SuiteReport {
+    pub suite: &'static str,
+    pub town: String,
+    pub runs: u32,
+    pub agents: Vec<SuiteAgentReport>,
+}
+
+fn mean(xs: impl Iterator<Item = f64>) -> f64 {
+    let (sum, n) = xs.fold((0.0, 0usize), |(s, n), x| (s + x, n + 1));
+    if n == 0 { 0.0 } else { sum / n as f64 }
+}
+
+/// Scores every agent on every scenario of the suite.
+pub fn evaluate_suite(agents: &mut [Agent], opts: &SuiteOptions) -> Result<SuiteReport> {
+    if opts.runs == 0 {
+        bail!("--runs must be at least 1");
+    }
+    let specs = scenarios(opts.suite);
+    let started = Instant::now();
+    let total = agents.len() * specs.len();
+    let mut done = 0usize;
+    let mut reports = Vec::new();
+    for agent in agents.iter_mut() {
+        let planner = planner_of(agent);
+        let camera = match &agent.driver {
+            Driver::ModelBased(_) => None,
+            Driver::Greedy(g) => g.cfg.env.camera.clone(),
+        };
+        let mut scenario_reports = Vec::new();
+        for spec in &specs {
+            let mut cfg = eval_env_config(camera.clone(), opts.traffic);
+            cfg.planner = planner;
+            if let Some(kind) = spec.hazard {
+                cfg.hazards = HazardsConfig::only(kind);
+                (cfg.route_length_min, cfg.route_length_max) = HAZARD_ROUTE_LENGTH;
+                cfg.time_limit = HAZARD_TIME_LIMIT;
+            }
+            let mut envs: Vec<Env> = (0..opts.runs)
+                .map(|_| Env::new(opts.town.clone(), cfg.clone()))
+                .collect::<Result<_, _>>()
+                .context("creating the environments")?;
+            let t = Instant::now();
+            let runs = drive_scored(&mut agent.driver, &mut envs, opts.seed, spec.scenario)
+                .with_context(|| format!("{} on {}", agent.name, spec.name))?;
+            let r = ScenarioReport {
+                scenario: spec.name,
+                driving_score: mean(runs.iter().map(|r| r.driving_score)),
+                route_completion: mean(runs.iter().map(|r| r.route_completion)),
+                success_rate: mean(runs.iter().map(|r| f64::from(u8::from(r.success)))),
+                mean_return: mean(runs.iter().map(|r| r.ret)),
+                runs,
+            };
+            done += 1;
+            if opts.progress {
+                let left = started.elapsed().as_secs_f64() / done as f64 * (total - done) as f64;
+                eprintln!(
+                    "eval [{done:>2}/{total}] {:<18} {:<20} driving score {:.2}, completion {:.2}, success {:.2}  ({:.1} s; about {left:.0} s left)",
+                    agent.name,
+                    spec.name,
+                    r.driving_score,
+                    r.route_completion,
+                    r.success_rate,
+                    t.elapsed().as_secs_f64()
+                );
+            }
+            scenario_reports.push(r);
+        }
+        let all: Vec<&RunScore> = scenario_reports.iter().flat_map(|s| &s.runs).collect();
+        let mut infractions: BTreeMap<&'static str, u32> = Infraction::ALL.iter().map(|i| (i.name(), 0)).collect();
+        for i in all.iter().flat_map(|r| &r.infractions) {
+            *infractions.entry(i.name()).or_default() += 1;
+        }
+        let km: f64 = all.iter().map(|r| r.km).sum();
+        let count: u32 = infractions.values().sum();
+        reports.push(SuiteAgentReport {
+            name: agent.name.clone(),
+            planner: planner.name(),
+            driving_score: mean(all.iter().map(|r| r.driving_score)),
+            route_completion: mean(all.iter().map(|r| r.route_completion)),
+            infraction_penalty: mean(all.iter().map(|r| r.infraction_penalty)),
+            success_rate: mean(all.iter().map(|r| f64::from(u8::from(r.success)))),
+            infractions_per_km: if km > 0.0 { f64::from(count) / km } else { 0.0 },
+            infractions,
+            scenarios: scenario_reports,
+        });
+    }
+    Ok(SuiteReport { suite: opts.suite.name(), town: opts.town.map.name.clone(), runs: opts.runs, agents: reports })
+}
+
+/// Drives one run per environment (run k with seed `seed + k`) in lockstep, ending a run when it
+/// is blocked, and scores each.
+fn drive_scored(driver: &mut Driver, envs: &mut [Env], seed: u64, scenario: Scenario) -> Result<Vec<RunScore>> {
+    for (k, env) in envs.iter_mut().enumerate() {
+        env.reset(seed + k as u64, scenario)?;
+    }
+    let n = envs.len();
+    let mut episodes = vec![Episode::default(); n];
+    let mut watches = vec![ProgressWatch::default(); n];
+    let mut ends: Vec<Option<RunEnd>> = vec![None; n];
+    loop {
+        let live: Vec<usize> = (0..n).filter(|&k| ends[k].is_none()).collect();
+        if live.is_empty() {
+            break;
+        }
+        let actions: Vec<Action> = match driver {
+            Driver::ModelBased(policy) => live.iter().map(|&k| policy.act(&envs[k])).collect(),
+            Driver::Greedy(agent) => {
+                let refs: Vec<&Env> = live.iter().map(|&k| &envs[k]).collect();
+                greedy_actions(agent, &refs).into_iter().map(|a| agent.actions[a as usize]).collect()
+            }
+        };
+        for (&k, action) in live.iter().zip(actions) {
+            let env = &mut envs[k];
+            let r = env.step(action)?;
+            episodes[k].record(&r);
+            let length = env.route.length();
+            let blocked = watches[k].record(r.info.progress * length, env.cfg.dt);
+            if r.terminated || r.truncated || blocked {
+                ends[k] = Some(RunEnd {
+                    arrived: r.info.arrived,
+                    collision: r.info.collision,
+                    timed_out: r.truncated && !r.info.arrived,
+                    blocked: blocked && !r.terminated,
+                    right_of_way_violations: env.right_of_way_violations(),
+                    progress: f64::from(r.info.progress),
+                    route_length_m: f64::from(length),
+                });
+            }
+        }
+    }
+    Ok(ends
+        .into_iter()
+        .zip(&episodes)
+        .zip(envs.iter())
+        .enumerate()
+        .map(|(k, ((end, ep), env))| {
+            let end = end.expect("every run ended");
+            let (route_completion, infractions, infraction_penalty, driving_score, success, km) = score_run(&end);
+            RunScore {
+                seed: seed + k as u64,
+                route_completion,
+                infraction_penalty,
+                driving_score,
+                success,
+                infractions,
+                km,
+                ret: ep.ret,
+                steps: ep.steps,
+                hazard: env.hazard.as_ref().map(|h| h.kind.name()),
+                hazard_triggered: env.hazard.as_ref().is_some_and(|h| h.triggered),
+            }
+        })
+        .collect())
+}
+
+/// The readable table (or Markdown): one row per scenario and agent, then each agent overall.
+#[must_use]
+pub fn suite_table(report: &SuiteReport, markdown: bool) -> String {
+    use std::fmt::Write;
+    let header = ["scenario", "agent", "planner", "driving score", "completion", "penalty", "success", "infractions", "mean return"];
+    let mut rows: Vec<[String; 9]> = Vec::new();
+    let infractions_of = |runs: &[&RunScore]| -> String {
+        let mut counts: BTreeMap<&str, u32> = BTreeMap::new();
+        for i in runs.iter().flat_map(|r| &r.infractions) {
+            *counts.entry(i.name()).or_default() += 1;
+        }
+        if counts.is_empty() { "—".to_owned() } else { counts.iter().map(|(k, v)| format!("{k} {v}")).collect::<Vec<_>>().join(", ") }
+    };
+    let Some(first) = report.agents.first() else { return String::new() };
+    for (i, s0) in first.scenarios.iter().enumerate() {
+        for (j, a) in report.agents.iter().enumerate() {
+            let s = &a.scenarios[i];
+            let runs: Vec<&RunScore> = s.runs.iter().collect();
+            rows.push([
+                if j == 0 || markdown { s0.scenario.to_owned() } else { String::new() },
+                a.name.clone(),
+                a.planner.to_owned(),
+                format!("{:.2}", s.driving_score),
+                format!("{:.2}", s.route_completion),
+                format!("{:.2}", mean(s.runs.iter().map(|r| r.infraction_penalty))),
+                format!("{:.2}", s.success_rate),
+                infractions_of(&runs),
+                format!("{:.1}", s.mean_return),
+            ]);
+        }
+    }
+    for (j, a) in report.agents.iter().enumerate() {
+        let runs: Vec<&RunScore> = a.scenarios.iter().flat_map(|s| &s.runs).collect();
+        rows.push([
+            if j == 0 || markdown { "overall".to_owned() } else { String::new() },
+            a.name.clone(),
+            a.planner.to_owned(),
+            format!("{:.2}", a.driving_score),
+            format!("{:.2}", a.route_completion),
+            format!("{:.2}", a.infraction_penalty),
+            format!("{:.2}", a.success_rate),
+            infractions_of(&runs),
+            format!("{:.1}", mean(a.scenarios.iter().map(|s| s.mean_return))),
+        ]);
+    }
+    let mut out = String::new();
+    if markdown {
+        let _ = writeln!(out, "| {} |", header.join(" | "));
+        let _ = writeln!(out, "|---|---|---|---:|---:|---:|---:|---|---:|");
+        for r in &rows {
+            let _ = writeln!(out, "| {} |", r.join(" | "));
+        }
+    } else {
+        let widths: Vec<usize> = (0..header.len())
+            .map(|c| rows.iter().map(|r| r[c].chars().count()).chain([header[c].chars().count()]).max().unwrap_or(0))
+            .collect();
+        let line = |cells: &[String]| -> String {
+            let parts: Vec<String> = cells
+                .iter()
+                .enumerate()
+                .map(|(c, s)| if c < 3 || c == 7 { format!("{s:<w$}", w = widths[c]) } else { format!("{s:>w$}", w = widths[c]) })
+                .collect();
+            parts.join("  ").trim_end().to_owned()
+        };
+        let _ = writeln!(out, "{}", line(&header.map(str::to_owned)));
+        for r in &rows {
+            let _ = writeln!(out, "{}", line(r));
+        }
+    }
+    let _ = writeln!(
+        out,
+        "\nSuite `{}` on town `{}`, {} run(s) per scenario. Driving score = route completion × infraction penalty (CARLA leaderboard factors: pedestrian 0.50, vehicle 0.60, static 0.65, right of way 0.70, timeout 0.70; off-road and blocked end the run); success = arrival without infraction.",
+        report.suite, report.town, report.runs
+    );
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::eval::run::model_based;
+    use crate::greedy::load_checkpoint;
+    use crate::testing::{tiny_config, write_checkpoint};
+    use sim_core::config::Variant;
+
+    fn opts(suite: Suite, runs: u32) -> SuiteOptions {
+        SuiteOptions { suite, runs, seed: 0, traffic: None, town: sim_core::town::Town::default_town(), progress: false }
+    }
+
+    #[test]
+    fn the_hazard_suite_separates_the_blind_baseline_from_the_avoiding_one_and_has_the_documented_shape() {
+        let mut agents = vec![model_based(), model_based_avoid()];
+        let report = evaluate_suite(&mut agents, &opts(Suite::Hazards, 2)).unwrap();
+        let v: serde_json::Value = serde_json::from_str(&serde_json::to_string(&report).unwrap()).unwrap();
+        assert_eq!((v["suite"].as_str(), v["town"].as_str(), v["runs"].as_u64()), (Some("hazards"), Some("default_town"), Some(2)));
+        let agents = v["agents"].as_array().unwrap();
+        assert_eq!(agents[0]["planner"], "astar");
+        assert_eq!(agents[1]["planner"], "astar+avoid");
+        for a in agents {
+            for key in ["driving_score", "route_completion", "infraction_penalty", "success_rate"] {
+                assert!(a[key].is_number(), "{key}");
+            }
+            assert!(a["infractions"]["pedestrian_collision"].is_number());
+            let scenarios = a["scenarios"].as_array().unwrap();
+            let names: Vec<&str> = scenarios.iter().map(|s| s["scenario"].as_str().unwrap()).collect();
+            assert_eq!(names, SUITE_KINDS.map(HazardKind::name));
+            for s in scenarios {
+                for key in ["driving_score", "route_completion", "success_rate", "mean_return"] {
+                    assert!(s[key].is_number(), "{key}");
+                }
+                let runs = s["runs"].as_array().unwrap();
+                assert_eq!(runs.len(), 2);
+                assert_eq!(runs[0]["hazard"], s["scenario"], "every run has its scenario's hazard");
+            }
+        }
+        let (blind, avoid) = (&report.agents[0], &report.agents[1]);
+        assert!(blind.driving_score < avoid.driving_score, "{} vs {}", blind.driving_score, avoid.driving_score);
+        let ped = |a: &SuiteAgentReport| a.infractions["pedestrian_collision"];
+        assert!(ped(blind) >= 1 && ped(avoid) == 0, "blind {} avoid {}", ped(blind), ped(avoid));
+        let t = suite_table(&report, true);
+        assert!(t.starts_with("| scenario | agent | planner | driving score |") && t.contains("stalled_car"), "{t}");
+    }
+
+    #[test]
+    fn the_clean_suite_scores_the_seven_routes_and_the_baselines_complete_them() {
+        let mut agents = vec![model_based(), model_based_avoid()];
+        let report = evaluate_suite(&mut agents, &opts(Suite::Clean, 1)).unwrap();
+        for a in &report.agents {
+            assert_eq!(a.scenarios.len(), 7);
+            assert!(a.driving_score >= 0.95, "{}: {}", a.name, a.driving_score);
+            assert!(a.scenarios.iter().all(|s| s.runs[0].hazard.is_none()));
+        }
+        assert!(Suite::from_name("meteor").unwrap_err().to_string().contains("`hazards` or `clean`"));
+    }
+
+    #[test]
+    fn a_checkpoint_of_today_evaluates_on_both_suites_with_its_planner() {
+        let dir = tempfile::tempdir().unwrap();
+        write_checkpoint(dir.path(), &tiny_config(Variant::Hybrid));
+        for suite in [Suite::Hazards, Suite::Clean] {
+            let agent = load_checkpoint(dir.path()).unwrap();
+            let mut agents = vec![Agent { name: "fresh".into(), driver: Driver::Greedy(Box::new(agent)) }];
+            let report = evaluate_suite(&mut agents, &opts(suite, 1)).unwrap();
+            let a = &report.agents[0];
+            assert_eq!(a.planner, "astar", "checkpoints so far plan with A*");
+            assert!(a.driving_score.is_finite() && (0.0..=1.0).contains(&a.driving_score), "{}", a.driving_score);
+            assert_eq!(a.scenarios.len(), if suite == Suite::Hazards { 6 } else { 7 });
+        }
+    }
+}

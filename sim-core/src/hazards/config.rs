@@ -1,0 +1,115 @@
+//! `[env.hazards]`: which hazards an episode may get, how often, and the ranges their parameters
+//! are drawn from. Off by default (`rate = 0`), which leaves every episode as it was.
+
+use serde::{Deserialize, Serialize};
+
+use super::kind::HazardKind;
+use crate::config::error::ConfigError;
+
+/// A closed range `[min, max]` a parameter is drawn from uniformly.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Range {
+    pub min: f32,
+    pub max: f32,
+}
+
+impl Range {
+    #[must_use]
+    pub const fn new(min: f32, max: f32) -> Self {
+        Self { min, max }
+    }
+
+    fn validate(&self, field: &str, lowest: f32) -> Result<(), ConfigError> {
+        if !(self.min.is_finite() && self.max.is_finite() && self.min >= lowest && self.max >= self.min) {
+            return Err(ConfigError {
+                field: field.to_owned(),
+                message: format!("[{}, {}] must be finite with {lowest} <= min <= max", self.min, self.max),
+            });
+        }
+        Ok(())
+    }
+}
+
+/// The hazards of episodes.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct HazardsConfig {
+    /// Probability that an episode gets a hazard, 0 to 1 (default 0: none).
+    pub rate: f32,
+    /// The kinds drawn from, uniformly (default: all six).
+    pub kinds: Vec<HazardKind>,
+    /// Route distance from the start to the hazard, metres (default 45–75).
+    pub distance: Range,
+    /// Seconds before the ego would reach a walker's crossing when it steps out (default 1.5–2.3).
+    pub trigger_time: Range,
+    /// Walking speed, m/s (default 1.3–1.8).
+    pub walker_speed: Range,
+    /// Length of a construction closure, metres (default 12–20).
+    pub closure_length: Range,
+    /// Seconds a hard-braking leader stands still before driving on (default 2–4).
+    pub stop_time: Range,
+    /// Bumper-to-bumper gap a cut-in leaves in front of the ego, metres (default 6–10).
+    pub cut_in_gap: Range,
+}
+
+impl Default for HazardsConfig {
+    fn default() -> Self {
+        Self {
+            rate: 0.0,
+            kinds: HazardKind::ALL.to_vec(),
+            distance: Range::new(45.0, 75.0),
+            trigger_time: Range::new(1.5, 2.3),
+            walker_speed: Range::new(1.3, 1.8),
+            closure_length: Range::new(12.0, 20.0),
+            stop_time: Range::new(2.0, 4.0),
+            cut_in_gap: Range::new(6.0, 10.0),
+        }
+    }
+}
+
+impl HazardsConfig {
+    /// Checks every field; the error names the first one out of range.
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        if !(self.rate.is_finite() && (0.0..=1.0).contains(&self.rate)) {
+            return Err(ConfigError { field: "hazards.rate".into(), message: format!("{} must be between 0 and 1", self.rate) });
+        }
+        if self.rate > 0.0 && self.kinds.is_empty() {
+            return Err(ConfigError {
+                field: "hazards.kinds".into(),
+                message: format!("is empty but hazards.rate is {}; name at least one of {}", self.rate, HazardKind::names()),
+            });
+        }
+        self.distance.validate("hazards.distance", 15.0)?;
+        self.trigger_time.validate("hazards.trigger_time", 0.1)?;
+        self.walker_speed.validate("hazards.walker_speed", 0.2)?;
+        self.closure_length.validate("hazards.closure_length", 4.0)?;
+        self.stop_time.validate("hazards.stop_time", 0.0)?;
+        self.cut_in_gap.validate("hazards.cut_in_gap", 2.0)?;
+        Ok(())
+    }
+
+    /// Only `kind`, in every episode (what the hazard suite drives).
+    #[must_use]
+    pub fn only(kind: HazardKind) -> Self {
+        Self { rate: 1.0, kinds: vec![kind], ..Self::default() }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn defaults_are_off_and_valid_and_errors_name_the_field() {
+        let c = HazardsConfig::default();
+        assert_eq!(c.rate, 0.0);
+        c.validate().unwrap();
+        let bad = HazardsConfig { rate: 1.5, ..HazardsConfig::default() };
+        assert_eq!(bad.validate().unwrap_err().field, "hazards.rate");
+        let bad = HazardsConfig { rate: 0.5, kinds: vec![], ..HazardsConfig::default() };
+        assert!(bad.validate().unwrap_err().to_string().contains("stalled_car"));
+        let bad = HazardsConfig { distance: Range::new(80.0, 40.0), ..HazardsConfig::default() };
+        assert_eq!(bad.validate().unwrap_err().field, "hazards.distance");
+    }
+}

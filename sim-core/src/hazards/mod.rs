@@ -1,0 +1,211 @@
+//! Hazards the planner does not know: a stalled car, a walker stepping out from behind a parked
+//! car, a cut-in, a hard-braking leader, a construction closure, an oncoming overtaker (after
+//! CARLA scenario_runner's `srunner/scenarios/`). One per episode at most, placed on the ego's
+//! route at a seeded distance ahead (`spawn.rs`), drawn from the episode's own hazard stream so
+//! that an episode without one is bit-identical to one with hazards off.
+//!
+//! Their cars live in [`Traffic`] (other cars queue behind them and the model-based driver's
+//! car-following sees them as it sees any car); their walkers and props (cones, a barrier, the
+//! occluding parked car) live here. The route, `d` and the path features never know any of it.
+
+pub mod config;
+pub mod kind;
+pub mod prop;
+pub mod spawn;
+pub mod walker;
+
+use serde::Serialize;
+
+pub use self::config::HazardsConfig;
+pub use self::kind::HazardKind;
+pub use self::prop::{Prop, PropKind};
+use self::walker::Walker;
+use crate::collision::{CollisionKind, Obb};
+use crate::map::LaneId;
+use crate::route::Route;
+use crate::town::Town;
+use crate::traffic::Traffic;
+use crate::vehicle::VehicleState;
+
+/// The scripted behaviour of a hazard.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) enum Script {
+    /// Nothing moves (stalled car, construction).
+    Static,
+    /// The walkers start when the ego is `trigger_time` seconds from the crossing.
+    Crossing { trigger_time: f32 },
+    /// The leader brakes at its limit on reaching the hazard point, stands `stop_time` s, drives on.
+    HardBrake { stop_time: f32, stopped_for: f32, released: bool },
+    /// The car alongside moves into `lane` once it is `gap` metres ahead of the ego's front (or
+    /// once the ego nears the hazard point with the car still ahead).
+    CutIn { lane: LaneId, gap: f32, changing: bool, side: f32 },
+    /// The oncoming car pulls `width` metres to its left (into the ego's lane) when near, holds
+    /// for 30 m of its travel, and returns. `phase`: 0 waiting, 1 out, 2 returning, 3 done.
+    Overtake { width: f32, out_for: f32, phase: u8 },
+}
+
+/// The hazard of an episode.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Hazard {
+    pub kind: HazardKind,
+    /// Route arc length of the hazard's point (the stalled car, the crossing, the closure's start).
+    pub s: f32,
+    pub walkers: Vec<Walker>,
+    pub props: Vec<Prop>,
+    /// Its car's index in `Traffic::cars`, if it has one.
+    pub car: Option<usize>,
+    pub(crate) script: Script,
+    /// Whether its script has fired (the walker started, the leader braked, the car cut in).
+    pub triggered: bool,
+}
+
+/// The hazard as `StepInfo` reports it.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct HazardInfo {
+    pub kind: HazardKind,
+    /// Route distance from the start, metres.
+    pub distance: f32,
+    pub triggered: bool,
+}
+
+/// Lateral speed of a scripted lane change, m/s.
+const LANE_CHANGE_SPEED: f32 = 1.75;
+
+impl Hazard {
+    /// What `StepInfo` reports.
+    #[must_use]
+    pub fn info(&self) -> HazardInfo {
+        HazardInfo { kind: self.kind, distance: self.s, triggered: self.triggered }
+    }
+
+    /// Advances the script by `dt` before traffic moves: triggers, forced accelerations, lane
+    /// changes, walking. `ego_s` is the ego's arc length along `route`.
+    pub fn step(&mut self, town: &Town, route: &Route, traffic: &mut Traffic, ego: &VehicleState, ego_s: f32, dt: f32) {
+        let half = traffic.params.length / 2.0;
+        match &mut self.script {
+            Script::Static => {}
+            Script::Crossing { trigger_time } => {
+                let to_go = self.s - ego_s - half;
+                if !self.triggered && to_go < ego.speed.max(1.0) * *trigger_time {
+                    self.triggered = true;
+                    for w in &mut self.walkers {
+                        w.walking = true;
+                    }
+                }
+            }
+            Script::HardBrake { stop_time, stopped_for, released } => {
+                let Some(i) = self.car else { return };
+                let c = &mut traffic.cars[i];
+                if !c.active || *released {
+                    return;
+                }
+                // On reaching the hazard point (measured along the ego's heading: cheap, and the
+                // leader drives the route's lane ahead of it).
+                if !self.triggered && (c.pos - route.path.point_at(self.s)).dot(route.path.tangent_at(self.s)) >= 0.0 {
+                    self.triggered = true;
+                }
+                if self.triggered {
+                    if c.speed > 0.0 {
+                        // At its limit: the stop in this step, never below zero.
+                        c.forced_accel = Some(-traffic.idm.max_decel.min(c.speed / dt));
+                    } else {
+                        c.forced_accel = Some(0.0);
+                        *stopped_for += dt;
+                        if *stopped_for >= *stop_time {
+                            c.forced_accel = None;
+                            *released = true;
+                        }
+                    }
+                }
+            }
+            Script::CutIn { lane, gap, changing, side } => {
+                let Some(i) = self.car else { return };
+                if !traffic.cars[i].active {
+                    return;
+                }
+                if !*changing {
+                    let ahead = (traffic.cars[i].pos - ego.pos).dot(ego.forward()) - 2.0 * half;
+                    // At the drawn gap, or at the latest as the ego nears the hazard point.
+                    if ahead > 0.0 && (ahead < *gap || ego_s > self.s - 5.0) {
+                        *changing = true;
+                        self.triggered = true;
+                        let p = town.map.lanes[*lane].path.project(traffic.cars[i].pos);
+                        let lateral = *side * p.distance;
+                        traffic.move_to_lane(town, i, *lane, p.s, lateral);
+                    }
+                } else {
+                    let c = &mut traffic.cars[i];
+                    let step = LANE_CHANGE_SPEED * dt;
+                    c.lateral = if c.lateral.abs() <= step { 0.0 } else { c.lateral - step * c.lateral.signum() };
+                    if c.lateral == 0.0 {
+                        c.forced_accel = None;
+                    }
+                }
+            }
+            Script::Overtake { width, out_for, phase } => {
+                let Some(i) = self.car else { return };
+                let c = &mut traffic.cars[i];
+                if !c.active {
+                    return;
+                }
+                let step = LANE_CHANGE_SPEED * dt;
+                match *phase {
+                    0 => {
+                        let gap = (c.pos - ego.pos).dot(ego.forward());
+                        if gap < (ego.speed + c.speed) * 3.5 + 10.0 {
+                            *phase = 1;
+                            self.triggered = true;
+                        }
+                    }
+                    1 => {
+                        c.lateral = (c.lateral + step).min(*width);
+                        *out_for += c.speed * dt;
+                        if *out_for > 30.0 {
+                            *phase = 2;
+                        }
+                    }
+                    2 => {
+                        c.lateral = (c.lateral - step).max(0.0);
+                        if c.lateral == 0.0 {
+                            *phase = 3;
+                            c.forced_accel = None;
+                        }
+                    }
+                    _ => {}
+                }
+            }
+        }
+        for w in &mut self.walkers {
+            w.step(dt);
+        }
+        traffic.yield_to.clear();
+        traffic.yield_to.extend(self.walkers.iter().map(Walker::body));
+        if self.kind == HazardKind::Construction
+            && let Some(first) = self.props.first()
+        {
+            traffic.yield_to.push(first.body);
+        }
+    }
+
+    /// What of the hazard `body` overlaps, if anything (its cars are checked with traffic).
+    #[must_use]
+    pub fn hit(&self, body: &Obb) -> Option<CollisionKind> {
+        if self.walkers.iter().any(|w| body.intersects(&w.body())) {
+            return Some(CollisionKind::Pedestrian);
+        }
+        self.props.iter().find(|p| body.intersects(&p.body)).map(|p| p.kind.collision())
+    }
+
+    /// Feeds the hash of the dynamic state.
+    pub(crate) fn hash_into(&self, write: &mut impl FnMut(u64)) {
+        write(self.kind as u64);
+        write(u64::from(self.triggered));
+        for w in &self.walkers {
+            write(u64::from(w.pos.x.to_bits()));
+            write(u64::from(w.pos.y.to_bits()));
+        }
+        for p in &self.props {
+            write(u64::from(p.body.centre.x.to_bits()));
+        }
+    }
+}
