@@ -7,6 +7,7 @@
 mod build;
 pub mod format;
 mod load;
+pub mod opendrive;
 mod surface;
 
 use crate::math::Vec2;
