@@ -17,6 +17,7 @@ pub mod path_features;
 pub mod polyline;
 pub mod reward;
 pub mod route;
+pub mod route_types;
 pub mod scenario;
 pub mod topology;
 pub mod town;

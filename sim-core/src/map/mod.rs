@@ -13,6 +13,7 @@ mod surface;
 use crate::math::Vec2;
 use crate::polyline::Polyline;
 pub use format::{MapError, MapSpec, MapWarning};
+pub use load::MapFileError;
 pub use surface::{SHADE, Surface, SurfaceRaster};
 
 /// Index of a lane in [`Map::lanes`].

@@ -177,13 +177,15 @@ pub(super) fn build(net: Network) -> Result<Map, OpenDriveError> {
             }
         }
         for link in [&r.successor, &r.predecessor].into_iter().flatten() {
-            if let Link::Junction { id, pos } = link
-                && !net.junctions.iter().any(|j| &j.id == id)
-            {
+            let missing = match link {
+                Link::Junction { id, pos } => (!net.junctions.iter().any(|j| &j.id == id)).then_some(("junction", id, pos)),
+                Link::Road { id, pos, .. } => (!road_index.contains_key(id.as_str())).then_some(("road", id, pos)),
+            };
+            if let Some((what, id, pos)) = missing {
                 return Err(OpenDriveError::at(
                     pos.line,
                     pos.column,
-                    format!("road {}: links to junction {id}, which the file does not have", r.id),
+                    format!("road {}: links to {what} {id}, which the file does not have", r.id),
                 ));
             }
         }

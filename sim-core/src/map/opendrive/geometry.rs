@@ -12,8 +12,11 @@ const GAUSS5: [(f64, f64); 5] = [
     (-0.906_179_845_938_664_0, 0.236_926_885_056_189_1),
     (0.906_179_845_938_664_0, 0.236_926_885_056_189_1),
 ];
-/// A spiral is integrated over sub-intervals at most this long, metres.
-const SPIRAL_STEP: f64 = 1.0;
+/// A spiral is integrated over sub-intervals at most this long, metres, ...
+const SPIRAL_STEP: f64 = 0.5;
+/// ... over which its heading turns at most this much, radians (5-point Gauss–Legendre is then
+/// within 1e-10 m per sub-interval).
+const SPIRAL_TURN: f64 = 0.2;
 
 /// A position and heading in the map's frame.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -78,7 +81,9 @@ fn poly_slope(c: &[f64; 4], p: f64) -> f64 {
 #[must_use]
 pub fn spiral_local(k0: f64, rate: f64, ds: f64) -> (f64, f64, f64) {
     let theta = |s: f64| k0 * s + 0.5 * rate * s * s;
-    let n = (ds / SPIRAL_STEP).ceil().max(1.0) as usize;
+    let k_max = k0.abs().max((k0 + rate * ds).abs());
+    let step = if k_max > 0.0 { SPIRAL_STEP.min(SPIRAL_TURN / k_max) } else { SPIRAL_STEP };
+    let n = (ds / step).ceil().clamp(1.0, 1.0e7) as usize;
     let h = ds / n as f64;
     let (mut x, mut y) = (0.0, 0.0);
     for i in 0..n {

@@ -12,6 +12,10 @@ use crate::map::MapWarning;
 pub const MAX_BYTES: usize = 64 << 20;
 /// More roads than this are refused.
 pub const MAX_ROADS: usize = 20_000;
+/// Roads longer than this are refused, metres (the simulator's maps fit in 2 km × 2 km).
+pub const MAX_ROAD_LENGTH: f64 = 10_000.0;
+/// Coordinates farther from the origin than this are refused, metres.
+pub const MAX_COORDINATE: f64 = 1.0e6;
 /// Geometry pieces shorter than this are skipped (exporters write slivers of 1e-10 m).
 const MIN_PIECE: f64 = 1e-6;
 
@@ -245,8 +249,8 @@ fn road<'input>(r: &mut Reader<'_, 'input>, n: Node<'_, 'input>) -> Result<Road,
     let id = r.text(n, "id", "a road")?.to_owned();
     let ctx = format!("road {id}");
     let length = r.number(n, "length", &ctx)?;
-    if length <= 0.0 {
-        return Err(r.err(n, format!("{ctx}: length is {length}; expected a positive length in metres")));
+    if length <= 0.0 || length > MAX_ROAD_LENGTH {
+        return Err(r.err(n, format!("{ctx}: length is {length}; expected a positive length in metres, at most {MAX_ROAD_LENGTH}")));
     }
     let junction = n.attribute("junction").filter(|j| *j != "-1" && !j.is_empty()).map(str::to_owned);
     let (mut predecessor, mut successor) = (None, None);
@@ -274,6 +278,11 @@ fn road<'input>(r: &mut Reader<'_, 'input>, n: Node<'_, 'input>) -> Result<Road,
     for g in children(plan, "geometry") {
         let s = r.number(g, "s", &ctx)?;
         let start = Pose { x: r.number(g, "x", &ctx)?, y: r.number(g, "y", &ctx)?, hdg: r.number(g, "hdg", &ctx)? };
+        if start.x.abs().max(start.y.abs()) > MAX_COORDINATE {
+            return Err(
+                r.err(g, format!("{ctx}: geometry starts at ({}, {}); coordinates must be within ±{MAX_COORDINATE} m", start.x, start.y))
+            );
+        }
         let len = r.number(g, "length", &ctx)?;
         if len < 0.0 {
             return Err(r.err(g, format!("{ctx}: geometry length is {len}; expected ≥ 0")));
