@@ -169,6 +169,9 @@ fn lane_position(map: &Map, (road, forward, index, station): (&str, bool, usize,
     Some(LaneMatch { lane, s: proj.s, distance: proj.distance })
 }
 
+/// A random drive gives up after this many lane hops (see `random_route`).
+const MAX_HOPS: usize = 10_000;
+
 /// Draws a random origin and destination whose planned route is `min..=max` metres long: a random
 /// origin on a road lane, a random drive along the lane graph for a random length, then A* back
 /// over the whole graph (which may find a shorter way). Tries up to 200 times.
@@ -186,6 +189,7 @@ pub fn random_route(town: &Town, min: f32, max: f32, spacing: f32, rng: &mut Cha
         let target = rng.random_range(min..=max);
         // Random drive.
         let (mut cur, mut cur_s, mut left) = (lane, s, target);
+        let mut hops = 0usize;
         let goal = loop {
             let remaining = lanes[cur].path.length() - cur_s;
             let is_road = matches!(lanes[cur].kind, LaneKind::Road { .. });
@@ -193,7 +197,11 @@ pub fn random_route(town: &Town, min: f32, max: f32, spacing: f32, rng: &mut Cha
                 break Some(cur_s + left);
             }
             let succ = &lanes[cur].successors;
-            if succ.is_empty() {
+            // Once `left` is clamped to 1 m no road lane can hold the goal (it needs `cur_s + left
+            // > 2`): the walk then ends only at a dead end, which a map without any (an OpenDRIVE
+            // town) lacks; give up after a bound instead of walking forever.
+            hops += 1;
+            if succ.is_empty() || hops > MAX_HOPS {
                 break None;
             }
             left = (left - remaining).max(1.0);

@@ -261,3 +261,18 @@ mod mutations {
         }
     }
 }
+
+#[test]
+fn plan_view_pieces_join_within_a_centimetre_in_every_shipped_file() {
+    for f in ["Town01.xodr", "fabriksgatan.xodr", "e6mini.xodr", "curves.xodr", "crest-curve.xodr"] {
+        let net = parse(&data(f)).expect("valid");
+        for r in &net.roads {
+            for w in r.geometry.windows(2) {
+                let (a, b) = (w[0].pose_at(w[0].length), w[1].start);
+                let gap = (a.x - b.x).hypot(a.y - b.y);
+                let turn = sim_core::map::opendrive::geometry::wrap(a.hdg - b.hdg).abs();
+                assert!(gap < 0.01 && turn < 0.01, "{f} road {}: piece at s = {} ends {gap} m and {turn} rad from the next", r.id, w[0].s);
+            }
+        }
+    }
+}

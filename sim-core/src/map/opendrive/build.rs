@@ -429,7 +429,7 @@ pub(super) fn build(net: Network) -> Result<Map, OpenDriveError> {
     if lanes.is_empty() {
         return Err(OpenDriveError::whole("the file has no driving lanes (lanes of type `driving`) of positive width"));
     }
-    let surface = paint(&net, &sampled)?;
+    let surface = paint(&net, &sampled, &junctions)?;
     Ok(Map { name: net.name, roads, lanes, junctions, obstacles: Vec::new(), overpasses: Vec::new(), surface, warnings: warnings.finish() })
 }
 
@@ -439,8 +439,8 @@ const LINE_WIDTH: f64 = 0.15;
 const DASH: (f64, f64) = (3.0, 6.0);
 
 /// Paints every lane of every section into a raster over the whole network: edges first, then
-/// shoulders, then driving lanes (junction lanes as the junction), then the lane lines.
-fn paint(net: &Network, sampled: &[Vec<SampledSection>]) -> Result<SurfaceRaster, OpenDriveError> {
+/// the junctions' outlines, shoulders, then driving lanes (junction lanes as the junction), then the lane lines.
+fn paint(net: &Network, sampled: &[Vec<SampledSection>], junctions: &[Junction]) -> Result<SurfaceRaster, OpenDriveError> {
     let (mut lo, mut hi) = (Vec2::splat(f32::INFINITY), Vec2::splat(f32::NEG_INFINITY));
     for secs in sampled {
         for smp in secs {
@@ -468,6 +468,13 @@ fn paint(net: &Network, sampled: &[Vec<SampledSection>]) -> Result<SurfaceRaster
     }
     let mut raster = SurfaceRaster::new(lo - Vec2::splat(margin as f32), hi + Vec2::splat(margin as f32), RASTER_CELL);
     for pass in [Surface::Sidewalk, Surface::Shoulder, Surface::Road] {
+        if pass == Surface::Shoulder {
+            // A junction is paved between its connectors (as the text format's junctions are):
+            // a vehicle cutting a corner stays on the road.
+            for j in junctions {
+                raster.fill_convex(&j.outline, Surface::Junction);
+            }
+        }
         for (r, secs) in net.roads.iter().zip(sampled) {
             for (sec, smp) in r.sections.iter().zip(secs) {
                 for (lane, sl) in sec.lanes.iter().zip(&smp.lanes) {
