@@ -56,12 +56,14 @@ impl RouteShape {
         if !self.turn_deg.contains(&turn) || !LENGTH.contains(&route.length()) {
             return false;
         }
+        // Connectors a vehicle had a choice at; a bend drawn as a junction of two roads (as
+        // RoadRunner exports corners) is a curve, not a turn.
         let turns: Vec<Turn> = route
             .lanes
             .iter()
             .filter_map(|&(l, _)| match map.lanes[l].kind {
-                LaneKind::Connector { turn, .. } => Some(turn),
-                LaneKind::Road { .. } => None,
+                LaneKind::Connector { turn, from, .. } if map.lanes[from].successors.len() > 1 || self.place != Place::Road => Some(turn),
+                _ => None,
             })
             .collect();
         match self.place {
@@ -95,6 +97,17 @@ pub fn find(town: &Town, shape: &RouteShape) -> Option<[LaneMatch; 2]> {
             }
         }
         Place::Highway | Place::Road | Place::UnderBridge => {
+            if shape.place == Place::Road {
+                // Bends through a junction without a choice (see `accepts`).
+                for lane in &map.lanes {
+                    if let LaneKind::Connector { from, to, .. } = lane.kind
+                        && map.lanes[from].successors.len() == 1
+                    {
+                        let (la, lb) = (map.lanes[from].path.length(), map.lanes[to].path.length());
+                        candidates.push([at(from, (la - APPROACH).max(1.0).min(la)), at(to, APPROACH.min(lb - 1.0).max(0.0))]);
+                    }
+                }
+            }
             for (id, lane) in map.lanes.iter().enumerate() {
                 let LaneKind::Road { road, .. } = lane.kind else { continue };
                 let r = &map.roads[road];

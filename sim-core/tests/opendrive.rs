@@ -276,3 +276,17 @@ fn plan_view_pieces_join_within_a_centimetre_in_every_shipped_file() {
         }
     }
 }
+
+#[test]
+fn town01_has_the_urban_route_types_and_no_highway_or_bridge() {
+    use sim_core::scenario::{EvalRoute, eval_route};
+    let town = sim_core::town::Town::new(Map::from_opendrive(&data("Town01.xodr")).expect("valid"));
+    for route in [EvalRoute::StraightUrban, EvalRoute::SharpCurve, EvalRoute::RightTurn, EvalRoute::LeftTurn] {
+        let r = eval_route(&town, route, 8.0).unwrap_or_else(|| panic!("Town01 has no {}", route.name()));
+        let turn = libm::remainderf(r.path.heading_at(r.path.length()) - r.path.heading_at(0.0), std::f32::consts::TAU).to_degrees();
+        eprintln!("{}: {:.0} m, {turn:.0}°", route.name(), r.length());
+    }
+    for route in [EvalRoute::StraightHighway, EvalRoute::StraightUnderBridge] {
+        assert!(eval_route(&town, route, 8.0).is_none(), "Town01 has no {}", route.name());
+    }
+}
