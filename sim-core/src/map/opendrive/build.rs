@@ -256,7 +256,7 @@ pub(super) fn build(net: Network) -> Result<Map, OpenDriveError> {
         if r.junction.is_some() {
             continue;
         }
-        for k in 0..r.sections.len() {
+        for (k, smp) in sampled[ri].iter().enumerate() {
             let mut mine: Vec<usize> = (0..od_lanes.len()).filter(|&l| od_lanes[l].road == ri && od_lanes[l].section == k).collect();
             if mine.is_empty() {
                 continue;
@@ -292,7 +292,6 @@ pub(super) fn build(net: Network) -> Result<Map, OpenDriveError> {
                     }
                 }
             }
-            let smp = &sampled[ri][k];
             let centre_pts: Vec<Vec2> = (0..smp.stations.len()).map(|i| smp.point(i, smp.offset[i])).collect();
             let centre =
                 Polyline::new(centre_pts).unwrap_or_else(|| lanes[forward.first().or(backward.first()).copied().unwrap_or(0)].path.clone());
@@ -461,7 +460,7 @@ fn paint(net: &Network, sampled: &[Vec<SampledSection>], junctions: &[Junction])
     let margin = 30.0;
     let (w, h) = (f64::from(hi.x - lo.x) + 2.0 * margin, f64::from(hi.y - lo.y) + 2.0 * margin);
     let cells = (w / f64::from(RASTER_CELL)).ceil() * (h / f64::from(RASTER_CELL)).ceil();
-    if !(cells <= MAX_RASTER_CELLS) {
+    if cells.is_nan() || cells > MAX_RASTER_CELLS {
         return Err(OpenDriveError::whole(format!(
             "the road network spans {w:.0} m × {h:.0} m (with margins); the simulator's maps must fit in 4 km² (e.g. 2 km × 2 km)"
         )));
