@@ -129,7 +129,10 @@ fn write_atomically(path: &Path, bytes: &[u8]) -> Result<()> {
 
 /// The routes `town` has: a map without named places has the route types found in it by shape
 /// (`sim_core::route_types`); the others are named and left out.
-fn routes_on(town: &sim_core::town::Town, routes: Vec<(&'static str, sim_core::scenario::Scenario)>) -> Result<Vec<(&'static str, sim_core::scenario::Scenario)>> {
+fn routes_on(
+    town: &sim_core::town::Town,
+    routes: Vec<(&'static str, sim_core::scenario::Scenario)>,
+) -> Result<Vec<(&'static str, sim_core::scenario::Scenario)>> {
     use sim_core::scenario::Scenario;
     let has = |s: &Scenario| match s {
         Scenario::Eval(r) => r.endpoints_in(town).is_some(),
