@@ -32,7 +32,7 @@ pub struct DriveArgs {
     /// Moving traffic cars (default: the configuration's, 20).
     #[arg(long)]
     pub traffic: Option<usize>,
-    /// A map file in the documented format (default: the embedded town).
+    /// A map file, the documented text format or OpenDRIVE `.xodr` (default: the embedded town).
     #[arg(long)]
     pub map: Option<std::path::PathBuf>,
     /// Write each step's front-camera and bird's-eye images as numbered PNGs under

@@ -42,7 +42,8 @@ pub fn load_town(map: Option<&std::path::Path>) -> Result<Arc<Town>> {
         None => Ok(Town::default_town()),
         Some(path) => {
             let text = std::fs::read_to_string(path).with_context(|| format!("reading map file {}", path.display()))?;
-            let town = Town::from_map_text(&text).with_context(|| format!("loading map file {}", path.display()))?;
+            let map = sim_core::map::Map::from_file_text(path, &text).with_context(|| format!("loading map file {}", path.display()))?;
+            let town = Town::new(map);
             for w in &town.map.warnings {
                 tracing::warn!("{}: {w}", path.display());
             }

@@ -213,7 +213,9 @@ fn load_town(map: Option<&std::path::Path>) -> PyResult<Arc<Town>> {
         Some(path) => {
             let text = std::fs::read_to_string(path)
                 .map_err(|e| PyOSError::new_err((e.raw_os_error().unwrap_or(0), format!("reading map file {}: {e}", path.display()))))?;
-            Town::from_map_text(&text).map_err(|e| PyValueError::new_err(format!("map file {}: {e}", path.display())))
+            let map = sim_core::map::Map::from_file_text(path, &text)
+                .map_err(|e| PyValueError::new_err(format!("map file {}: {e}", path.display())))?;
+            Ok(Town::new(map))
         }
     }
 }

@@ -19,6 +19,7 @@ pub mod planner;
 pub mod polyline;
 pub mod reward;
 pub mod route;
+pub mod route_types;
 pub mod scenario;
 pub mod topology;
 pub mod town;

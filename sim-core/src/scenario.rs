@@ -4,8 +4,9 @@
 use rand::RngExt;
 use rand_chacha::ChaCha8Rng;
 
-use crate::map::{LaneId, LaneKind, LaneMatch, Map};
+use crate::map::{LaneId, LaneKind, LaneMatch, Map, Turn};
 use crate::route::{Route, plan};
+use crate::route_types::{Place, RouteShape, find};
 use crate::town::Town;
 
 /// What an episode drives.
@@ -124,6 +125,33 @@ impl EvalRoute {
         }
     }
 
+    /// What a route of this type looks like, for finding one in a map without named places (the
+    /// same bounds `sim-core/tests/world.rs` checks the embedded towns' routes against).
+    #[must_use]
+    pub fn shape(self) -> RouteShape {
+        let (place, turn_deg, either_way) = match self {
+            EvalRoute::StraightHighway => (Place::Highway, 0.0..5.0, true),
+            EvalRoute::StraightUrban => (Place::Junction, 0.0..5.0, true),
+            EvalRoute::StraightUnderBridge => (Place::UnderBridge, 0.0..5.0, true),
+            EvalRoute::SlightCurve => (Place::Road, 10.0..40.0, true),
+            EvalRoute::SharpCurve => (Place::Road, 80.0..100.0, true),
+            EvalRoute::RightTurn => (Place::Turn(Turn::Right), -100.0..-80.0, false),
+            EvalRoute::LeftTurn => (Place::Turn(Turn::Left), 80.0..100.0, false),
+        };
+        RouteShape { place, turn_deg, either_way }
+    }
+
+    /// The route's origin and destination on `town`: its named place on an embedded town, else
+    /// the first place of its shape found in the map (`route_types.rs`, searched once per town).
+    #[must_use]
+    pub fn endpoints_in(self, town: &Town) -> Option<[LaneMatch; 2]> {
+        if let Some(ends) = self.endpoints(&town.map) {
+            return Some(ends);
+        }
+        let found = town.found_routes.get_or_init(|| EvalRoute::ALL.iter().map(|r| find(town, &r.shape())).collect());
+        found[EvalRoute::ALL.iter().position(|&r| r == self)?]
+    }
+
     /// The route's origin and destination as lane positions on `map`. `None` if the map is not
     /// an embedded town (by its name) or lacks the roads.
     #[must_use]
@@ -140,6 +168,9 @@ fn lane_position(map: &Map, (road, forward, index, station): (&str, bool, usize,
     let proj = map.lanes[lane].path.project(p);
     Some(LaneMatch { lane, s: proj.s, distance: proj.distance })
 }
+
+/// A random drive gives up after this many lane hops (see `random_route`).
+const MAX_HOPS: usize = 10_000;
 
 /// Draws a random origin and destination whose planned route is `min..=max` metres long: a random
 /// origin on a road lane, a random drive along the lane graph for a random length, then A* back
@@ -158,6 +189,7 @@ pub fn random_route(town: &Town, min: f32, max: f32, spacing: f32, rng: &mut Cha
         let target = rng.random_range(min..=max);
         // Random drive.
         let (mut cur, mut cur_s, mut left) = (lane, s, target);
+        let mut hops = 0usize;
         let goal = loop {
             let remaining = lanes[cur].path.length() - cur_s;
             let is_road = matches!(lanes[cur].kind, LaneKind::Road { .. });
@@ -165,7 +197,11 @@ pub fn random_route(town: &Town, min: f32, max: f32, spacing: f32, rng: &mut Cha
                 break Some(cur_s + left);
             }
             let succ = &lanes[cur].successors;
-            if succ.is_empty() {
+            // Once `left` is clamped to 1 m no road lane can hold the goal (it needs `cur_s + left
+            // > 2`): the walk then ends only at a dead end, which a map without any (an OpenDRIVE
+            // town) lacks; give up after a bound instead of walking forever.
+            hops += 1;
+            if succ.is_empty() || hops > MAX_HOPS {
                 break None;
             }
             left = (left - remaining).max(1.0);
@@ -187,6 +223,6 @@ pub fn random_route(town: &Town, min: f32, max: f32, spacing: f32, rng: &mut Cha
 /// The planned route of an evaluation scenario.
 #[must_use]
 pub fn eval_route(town: &Town, route: EvalRoute, spacing: f32) -> Option<Route> {
-    let [from, to] = route.endpoints(&town.map)?;
+    let [from, to] = route.endpoints_in(town)?;
     plan(&town.map, &town.graph, from, to, spacing)
 }

@@ -6,7 +6,7 @@ use std::sync::Arc;
 
 use crate::camera::scene::{SceneBox, static_boxes};
 use crate::collision::StaticGrid;
-use crate::map::{JunctionId, LaneId, LaneKind, Map, MapError};
+use crate::map::{JunctionId, LaneId, LaneKind, LaneMatch, Map, MapError};
 use crate::topology::LaneGraph;
 
 /// Lateral acceleration traffic accepts in curves, m/s².
@@ -25,6 +25,9 @@ pub struct Town {
     /// The static scenery as the renderers draw it (obstacles, then overpass decks), prepared
     /// once here so that no frame rebuilds it; built by `camera::scene`, which decides its looks.
     pub scene_statics: Vec<SceneBox>,
+    /// The evaluation routes found in this map (by position in `EvalRoute::ALL`), searched once
+    /// on first use by `scenario::eval_route` for maps whose routes are not named places.
+    pub found_routes: std::sync::OnceLock<Vec<Option<[LaneMatch; 2]>>>,
 }
 
 impl Town {
@@ -41,7 +44,7 @@ impl Town {
             }
         }
         let scene_statics = static_boxes(&map);
-        Arc::new(Self { map, graph, statics, curve_speed, connector_slot, scene_statics })
+        Arc::new(Self { map, graph, statics, curve_speed, connector_slot, scene_statics, found_routes: std::sync::OnceLock::new() })
     }
 
     /// The embedded default town.

@@ -98,6 +98,7 @@ pub fn run(args: &EvalArgs) -> Result<()> {
     let mut agents = vec![model_based()];
     add_checkpoints(args, &mut agents)?;
     let town = town_by_name_or_file(&args.town)?;
+    let routes = routes_on(&town, routes)?;
     let opts = EvalOptions { routes, runs: args.runs, seed: args.seed, traffic: args.traffic, town, progress: true };
     eprintln!(
         "evaluating {} agent(s) on {} route(s) of {} × {} run(s) (seeds {}..={}), greedy (ε = {EPSILON})",
@@ -170,6 +171,26 @@ fn write_atomically(path: &Path, bytes: &[u8]) -> Result<()> {
     let tmp = path.with_extension(format!("tmp-{}", std::process::id()));
     std::fs::write(&tmp, bytes).with_context(|| format!("writing {}", tmp.display()))?;
     std::fs::rename(&tmp, path).with_context(|| format!("renaming {} to {}", tmp.display(), path.display()))
+}
+
+/// The routes `town` has: a map without named places has the route types found in it by shape
+/// (`sim_core::route_types`); the others are named and left out.
+fn routes_on(
+    town: &sim_core::town::Town,
+    routes: Vec<(&'static str, sim_core::scenario::Scenario)>,
+) -> Result<Vec<(&'static str, sim_core::scenario::Scenario)>> {
+    use sim_core::scenario::Scenario;
+    let has = |s: &Scenario| match s {
+        Scenario::Eval(r) => r.endpoints_in(town).is_some(),
+        Scenario::Random => true,
+    };
+    let (found, missing): (Vec<_>, Vec<_>) = routes.into_iter().partition(|(_, s)| has(s));
+    if !missing.is_empty() {
+        let names: Vec<&str> = missing.iter().map(|(n, _)| *n).collect();
+        eprintln!("{} has no route of type {}: left out of the table", town.map.name, names.join(", "));
+    }
+    anyhow::ensure!(!found.is_empty(), "{} has none of the requested route types", town.map.name);
+    Ok(found)
 }
 
 #[cfg(test)]

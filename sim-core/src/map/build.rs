@@ -15,9 +15,9 @@ const END_TOLERANCE: f32 = 0.5;
 /// Junction area reaches this far beyond the widest road's half-width, metres.
 const JUNCTION_MARGIN: f32 = 2.0;
 /// Two connectors conflict when their centre lines come closer than this, metres.
-const CONFLICT_DISTANCE: f32 = 3.2;
+pub(super) const CONFLICT_DISTANCE: f32 = 3.2;
 /// Raster cell size, metres.
-const RASTER_CELL: f32 = 0.25;
+pub(super) const RASTER_CELL: f32 = 0.25;
 
 /// One end of a road at a node.
 #[derive(Debug, Clone, Copy)]
@@ -307,7 +307,7 @@ pub(super) fn build(spec: &MapSpec) -> Result<Map, MapError> {
 }
 
 /// The surface raster may hold at most this many cells (64 MiB: 4 km² at `RASTER_CELL`).
-const MAX_RASTER_CELLS: f64 = (1u64 << 26) as f64;
+pub(super) const MAX_RASTER_CELLS: f64 = (1u64 << 26) as f64;
 
 /// Refuses maps whose bounding box (as `paint_surface` computes it, 30 m margin included) would
 /// need a raster too large to allocate: coordinates up to ±1e6 m are valid numbers, but a map
@@ -423,13 +423,13 @@ fn connector_path(a: &Polyline, b: &Polyline) -> Polyline {
 }
 
 /// The smallest distance between the vertices of one polyline and the segments of the other.
-fn polyline_distance(a: &Polyline, b: &Polyline) -> f32 {
+pub(super) fn polyline_distance(a: &Polyline, b: &Polyline) -> f32 {
     let one_way = |x: &Polyline, y: &Polyline| x.points().iter().map(|&p| y.project(p).distance).fold(f32::INFINITY, f32::min);
     one_way(a, b).min(one_way(b, a))
 }
 
 /// Convex hull (Andrew's monotone chain), counter-clockwise.
-fn convex_hull(mut pts: Vec<Vec2>) -> Vec<Vec2> {
+pub(super) fn convex_hull(mut pts: Vec<Vec2>) -> Vec<Vec2> {
     pts.sort_by(|a, b| a.x.total_cmp(&b.x).then(a.y.total_cmp(&b.y)));
     pts.dedup();
     if pts.len() < 3 {
@@ -510,7 +510,7 @@ fn paint_surface(
 }
 
 /// Levels of the surface raster pyramid (0.25, 0.5, 1, 2 and 4 m cells).
-const RASTER_LEVELS: usize = 5;
+pub(super) const RASTER_LEVELS: usize = 5;
 
 /// Width of painted lines, metres (wide enough to stay continuous on the raster).
 const LINE_WIDTH: f32 = 0.3;

@@ -7,11 +7,13 @@
 mod build;
 pub mod format;
 mod load;
+pub mod opendrive;
 mod surface;
 
 use crate::math::Vec2;
 use crate::polyline::Polyline;
 pub use format::{MapError, MapSpec, MapWarning};
+pub use load::MapFileError;
 pub use surface::{SHADE, Surface, SurfaceRaster};
 
 /// Index of a lane in [`Map::lanes`].
