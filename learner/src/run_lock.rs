@@ -27,8 +27,17 @@ pub enum RunLockError {
 /// The exclusive lock on a run directory, held until dropped.
 #[derive(Debug)]
 pub struct RunLock {
-    _file: File,
+    file: File,
     path: PathBuf,
+}
+
+impl Drop for RunLock {
+    /// Unlocks explicitly rather than by closing: a child being started at that moment (between
+    /// its fork and its exec, which closes the descriptor) shares the lock's open file, and the
+    /// lock would outlive this holder until it execs.
+    fn drop(&mut self) {
+        let _ = self.file.unlock();
+    }
 }
 
 impl RunLock {
@@ -54,7 +63,7 @@ impl RunLock {
             .and_then(|()| file.write_all(me.as_bytes()))
             .and_then(|()| file.sync_all())
             .map_err(io)?;
-        Ok(Self { _file: file, path })
+        Ok(Self { file, path })
     }
 
     /// The lock file.
