@@ -21,12 +21,17 @@ def test_missing_map_file():
         gymnasium.make("HybridDrive-v0", map="/nonexistent.map")
 
 
-def test_map_file_drives_random_routes_but_not_the_towns(small_map):
+def test_map_file_drives_random_routes_and_the_route_types_it_has(small_map):
     env = gymnasium.make("HybridDrive-v0", map=small_map, vehicles=2, parked_cars=0)
     obs, _ = env.reset(seed=0)
     assert obs in env.observation_space
-    with pytest.raises(ValueError, match="route \"left_turn\" needs the default town's roads"):
-        gymnasium.make("HybridDrive-v0", map=small_map, route="left_turn")
+    # Route types are found in any map by their shape (sim-core's route_types): the two blocks
+    # have a left turn, but nothing that reads as a highway.
+    env = gymnasium.make("HybridDrive-v0", map=small_map, route="left_turn")
+    obs, _ = env.reset(seed=0)
+    assert obs in env.observation_space
+    with pytest.raises(ValueError, match="route \"straight_highway\" needs the default town's roads"):
+        gymnasium.make("HybridDrive-v0", map=small_map, route="straight_highway")
 
 
 def test_bad_route_lists_the_valid_ones():
