@@ -110,14 +110,19 @@ pub fn run(args: &EvalArgs) -> Result<()> {
         opts.seed + u64::from(opts.runs.max(1) - 1)
     );
     let report = evaluate(&mut agents, &opts)?;
-    let json = serde_json::to_string(&report)?;
+    emit(args, &serde_json::to_string(&report)?, || table(&report, args.markdown))
+}
+
+/// Writes a report where the flags say: `--json-out` (atomically), then the JSON line on stdout
+/// with `--json`, else the table.
+fn emit(args: &EvalArgs, json: &str, table: impl FnOnce() -> String) -> Result<()> {
     if let Some(path) = &args.json_out {
         write_atomically(path, json.as_bytes())?;
     }
     if args.json {
         println!("{json}");
     } else {
-        print!("{}", table(&report, args.markdown));
+        print!("{}", table());
     }
     Ok(())
 }
@@ -154,16 +159,7 @@ fn run_suite(args: &EvalArgs, name: &str) -> Result<()> {
         opts.seed
     );
     let report = evaluate_suite(&mut agents, &opts)?;
-    let json = serde_json::to_string(&report)?;
-    if let Some(path) = &args.json_out {
-        write_atomically(path, json.as_bytes())?;
-    }
-    if args.json {
-        println!("{json}");
-    } else {
-        print!("{}", suite_table(&report, args.markdown));
-    }
-    Ok(())
+    emit(args, &serde_json::to_string(&report)?, || suite_table(&report, args.markdown))
 }
 
 /// Writes through a temporary file and a rename, so that an interrupted run leaves no half file.
