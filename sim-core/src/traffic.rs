@@ -106,6 +106,29 @@ pub struct TrafficCar {
     segment: usize,
 }
 
+impl TrafficCar {
+    /// A car driving on `lane` at `s`, placed at `pose` (position, heading, the path segment).
+    fn driving(lane: LaneId, s: f32, speed: f32, desired_speed: f32, next: Option<LaneId>, pose: (Vec2, f32, usize)) -> Self {
+        let (pos, heading, segment) = pose;
+        Self {
+            lane,
+            s,
+            speed,
+            desired_speed,
+            next,
+            pos,
+            heading,
+            hold: None,
+            requested_at: None,
+            parked: false,
+            active: true,
+            forced_accel: None,
+            lateral: 0.0,
+            segment,
+        }
+    }
+}
+
 /// What traffic must know of the ego vehicle.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct EgoView {
@@ -200,22 +223,7 @@ impl Traffic {
     /// Returns its index.
     pub fn add_driving_on_lane(&mut self, town: &Town, lane: LaneId, s: f32, speed: f32, next: Option<LaneId>) -> usize {
         let (pos, heading, segment) = town.map.lanes[lane].path.pose_at_hinted(s, 0);
-        self.cars.push(TrafficCar {
-            lane,
-            s,
-            speed,
-            desired_speed: speed,
-            next,
-            pos,
-            heading,
-            hold: None,
-            requested_at: None,
-            parked: false,
-            active: true,
-            forced_accel: None,
-            lateral: 0.0,
-            segment,
-        });
+        self.cars.push(TrafficCar::driving(lane, s, speed, speed, next, (pos, heading, segment)));
         self.rebuild_lanes();
         self.cars.len() - 1
     }
@@ -249,22 +257,7 @@ impl Traffic {
         }
         let desired_speed = l.speed_limit * rng.random_range(0.8..1.0);
         let next = pick_successor(town, lane, rng);
-        Some(TrafficCar {
-            lane,
-            s,
-            speed: desired_speed * 0.5,
-            desired_speed,
-            next,
-            pos,
-            heading,
-            hold: None,
-            requested_at: None,
-            parked: false,
-            active: true,
-            forced_accel: None,
-            lateral: 0.0,
-            segment,
-        })
+        Some(TrafficCar::driving(lane, s, desired_speed * 0.5, desired_speed, next, (pos, heading, segment)))
     }
 
     /// The body of car `i`.
