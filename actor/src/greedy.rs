@@ -45,7 +45,7 @@ impl GreedyAgent {
     /// A network of `cfg` with the parameters of `weights` (a safetensors file, as the learner
     /// publishes and checkpoints them), on `threads` threads.
     pub fn from_weights(cfg: RunConfig, weights: &[u8], threads: usize, source: CheckpointInfo) -> Result<Self> {
-        let mut net = Inference::new(cfg.net_shape(), cfg.agent.seed, threads);
+        let (mut net, _) = Inference::with_precision(cfg.net_shape(), cfg.agent.seed, threads, cfg.agent.precision);
         net.load(weights).context("the weights do not fit the run's network")?;
         let actions = cfg.agent.action_set.actions();
         Ok(Self { cfg, net, actions, source })
@@ -62,7 +62,7 @@ pub fn load_checkpoint(path: &Path) -> Result<GreedyAgent> {
     let text = String::from_utf8(config_bytes).with_context(|| format!("checkpoint file {} is not UTF-8 text", config_path.display()))?;
     let cfg = RunConfig::from_toml(&text, &config_path.display().to_string())?;
     let shape = cfg.net_shape();
-    let mut net = Inference::new(shape, cfg.agent.seed, agent::fastnet::default_threads());
+    let (mut net, _) = Inference::with_precision(shape, cfg.agent.seed, agent::fastnet::default_threads(), cfg.agent.precision);
     net.load(&bytes).with_context(|| {
         format!(
             "checkpoint weights {} do not fit the network its {} describes ({}x{}x{} input, {} scalars, {} actions)",

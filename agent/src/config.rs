@@ -45,6 +45,10 @@ pub struct AgentConfig {
     pub conv_filters: usize,
     /// Units of each of the two hidden fully connected layers (default 256, the paper's).
     pub hidden: usize,
+    /// Arithmetic of the wide convolutions: `auto` (bf16 on AMX where the CPU has it, else f32;
+    /// default), `f32`, or `bf16` (refused without AMX). Results differ between the two
+    /// (bf16 keeps 8 significant bits); each is bit-identical run to run.
+    pub precision: crate::fastnet::Precision,
     /// Discount γ (default 0.99).
     pub gamma: f32,
     /// Adam learning rate (default 2.5e-4).
@@ -103,6 +107,7 @@ impl Default for AgentConfig {
             action_set: ActionSet::Paper6,
             conv_filters: 64,
             hidden: 256,
+            precision: crate::fastnet::Precision::Auto,
             gamma: 0.99,
             learning_rate: 2.5e-4,
             batch_size: 32,

@@ -11,7 +11,7 @@ use crate::dqn::{Batch, Dqn};
 use crate::serve::{ServeOptions, start};
 use agent::NetShape;
 use agent::config::{AgentConfig, Durability, RunConfig};
-use agent::fastnet::{FastNet, Params};
+use agent::fastnet::{FastNet, Params, Precision};
 
 /// Parses `WxHxC`, e.g. `84x84x3`.
 pub fn parse_input(s: &str) -> Result<(usize, usize, usize), String> {
@@ -107,10 +107,15 @@ fn median_ms(reps: usize, mut f: impl FnMut()) -> f64 {
 
 /// Times full DQN updates (online forward and backward, target forward on the next states,
 /// optimizer step) of the paper's network at `input` with batch `batch` on `threads` threads,
-/// and forward passes at batch 1 and at `forward_batch`; calibrates the machine (a square GEMM
-/// on 1 and on `threads` threads) and gives each figure as a fraction of that peak. With
-/// `reference`, also times candle's own implementation of the same update's forward and backward
-/// passes, in the same run.
+/// and forward passes at batch 1 and at `forward_batch`, in each of `precisions` (`f32`, `bf16`),
+/// alternating between them call by call so that both see the same machine; calibrates the
+/// machine (a square f32 GEMM on 1 and on `threads` threads, and a bf16 one where AMX runs) and
+/// gives each figure as a fraction of that peak. With one precision the figures are top-level
+/// fields; with two, each has its own object and `bf16_over_f32` their ratios. With `reference`,
+/// also times candle's own implementation of the same update's forward and backward passes.
+///
+/// # Errors
+/// `bf16` where AMX is absent (the message says why), or candle's failure.
 pub fn train(
     input: (usize, usize, usize),
     batch: usize,
@@ -118,67 +123,145 @@ pub fn train(
     updates: usize,
     threads: usize,
     reference: bool,
+    precisions: &[Precision],
 ) -> Result<serde_json::Value> {
     let (w, h, c) = input;
     let agent = AgentConfig::default();
     let shape = NetShape { height: h, width: w, channels: c, scalars: 2, actions: 6, filters: agent.conv_filters, hidden: agent.hidden };
+    let chosen: Vec<(Precision, bool)> = precisions
+        .iter()
+        .map(|&p| Ok((p, p.resolve().with_context(|| format!("--precision {}", p.name()))?.bf16)))
+        .collect::<Result<_>>()?;
     let load_before = load_average();
     let peak_1 = gemm_peak_gflops(1, 5);
     let peak = if threads == 1 { peak_1 } else { gemm_peak_gflops(threads, 5) };
-    tracing::info!(peak_gflops_1_thread = peak_1, peak_gflops = peak, threads, "GEMM calibration");
-    let mut dqn = Dqn::with_threads(shape, &agent, threads);
+    let peak_bf16 = agent::fastnet::amx::available().is_ok().then(|| bf16_peak_gflops(5));
+    tracing::info!(peak_gflops_1_thread = peak_1, peak_gflops = peak, ?peak_bf16, threads, "GEMM calibration");
     let update_batch = random_batch(&shape, batch);
     let b = random_batch(&shape, forward_batch);
-    let ms = median_ms(updates, || {
+    let (frame, s) = (h * w * c, shape.scalars);
+    let mut paths: Vec<(Dqn, FastNet)> = chosen
+        .iter()
+        .map(|&(p, bf16)| {
+            let cfg = AgentConfig { precision: p, ..agent.clone() };
+            (Dqn::with_threads(shape, &cfg, threads), FastNet::with_precision(shape, threads, bf16))
+        })
+        .collect();
+    let update_ms = alternating_median_ms(updates, &mut paths, |(dqn, _)| {
         dqn.update(&update_batch);
     });
-    tracing::info!(ms_per_update = ms, "fast update timed");
-    let mut net = FastNet::new(shape, threads);
-    let frame = h * w * c;
-    let s = shape.scalars;
-    let forward_1 = median_ms(updates.max(20), || {
+    let forward_1 = alternating_median_ms(updates.max(20), &mut paths, |(dqn, net)| {
         net.forward(&dqn.online, &b.images[..frame], &b.scalars[..s]);
     });
-    let forward_b = median_ms(updates.max(10), || {
+    let forward_b = alternating_median_ms(updates.max(10), &mut paths, |(dqn, net)| {
         net.forward(&dqn.online, &b.images, &b.scalars);
     });
-    let per_sample = forward_b / forward_batch as f64;
     let f = shape.forward_flops();
-    let (gf_1, frac_1) = rate(f, forward_1, peak);
-    let (gf_b, frac_b) = rate(f, per_sample, peak);
-    let (gf_u, frac_u) = rate(update_flops(&shape, batch, agent.double_dqn), ms, peak);
+    let figures: Vec<serde_json::Value> = chosen
+        .iter()
+        .enumerate()
+        .map(|(i, &(p, bf16))| {
+            let (ms, per_sample) = (update_ms[i], forward_b[i] / forward_batch as f64);
+            tracing::info!(precision = p.name(), bf16, ms_per_update = ms, forward_batch1_ms = forward_1[i], "timed");
+            let (gf_1, frac_1) = rate(f, forward_1[i], peak);
+            let (gf_b, frac_b) = rate(f, per_sample, peak);
+            let (gf_u, frac_u) = rate(update_flops(&shape, batch, agent.double_dqn), ms, peak);
+            serde_json::json!({
+                "precision": if bf16 { "bf16" } else { "f32" },
+                "updates_per_sec": 1000.0 / ms,
+                "ms_per_update": ms,
+                "update_gflops": gf_u,
+                "update_fraction_of_peak": frac_u,
+                "forward_batch1_ms": forward_1[i],
+                "forward_batch1_gflops": gf_1,
+                "forward_batch1_fraction_of_peak": frac_1,
+                "forward_ms_per_sample": per_sample,
+                "forward_gflops": gf_b,
+                "forward_fraction_of_peak": frac_b,
+            })
+        })
+        .collect();
     let mut out = serde_json::json!({
-        "updates_per_sec": 1000.0 / ms,
         "batch": batch,
         "input": format!("{w}x{h}x{c}"),
-        "ms_per_update": ms,
-        "update_gflops": gf_u,
-        "update_fraction_of_peak": frac_u,
         "threads": threads,
-        "forward_batch1_ms": forward_1,
-        "forward_batch1_gflops": gf_1,
-        "forward_batch1_fraction_of_peak": frac_1,
         "forward_batch": forward_batch,
-        "forward_ms_per_sample": per_sample,
-        "forward_gflops": gf_b,
-        "forward_fraction_of_peak": frac_b,
         "forward_mflop_per_image": f / 1e6,
         "peak_gflops_1_thread": peak_1,
         "peak_gflops": peak,
         "calibration": format!("{CALIBRATION_N}x{CALIBRATION_N}x{CALIBRATION_N} f32 GEMM, median of 5"),
+        "peak_gflops_bf16_1_thread": peak_bf16,
+        "amx": agent::fastnet::amx::available().err().unwrap_or("available"),
         "cpu": cpu_model(),
         "implementation": "fastnet",
         "load_before": load_before,
-        "load_after": load_average(),
     });
+    match figures.as_slice() {
+        [one] => merge(&mut out, one),
+        [f32, bf16] => {
+            let ratio = |k: &str| bf16[k].as_f64().zip(f32[k].as_f64()).map(|(b, f)| b / f);
+            out["precision"] = "both".into();
+            out["bf16_over_f32"] = serde_json::json!({
+                "ms_per_update": ratio("ms_per_update"),
+                "forward_batch1_ms": ratio("forward_batch1_ms"),
+                "forward_ms_per_sample": ratio("forward_ms_per_sample"),
+            });
+            out["f32"] = f32.clone();
+            out["bf16"] = bf16.clone();
+        }
+        _ => bail!("bench train: one or two precisions, not {}", figures.len()),
+    }
     if reference {
-        let candle_ms = candle_ms_per_update(&shape, &dqn.online, &update_batch, updates.min(3))?;
+        let candle_ms = candle_ms_per_update(&shape, &paths[0].0.online, &update_batch, updates.min(3))?;
         tracing::info!(candle_ms_per_update = candle_ms, "candle reference timed");
         out["candle_ms_per_update"] = serde_json::json!(candle_ms);
-        out["speedup_over_candle"] = serde_json::json!(candle_ms / ms);
-        out["load_after"] = serde_json::json!(load_average());
+        out["speedup_over_candle"] = serde_json::json!(candle_ms / update_ms[0]);
     }
+    out["load_after"] = serde_json::json!(load_average());
     Ok(out)
+}
+
+/// Copies `from`'s fields into `into`.
+fn merge(into: &mut serde_json::Value, from: &serde_json::Value) {
+    if let (Some(into), Some(from)) = (into.as_object_mut(), from.as_object()) {
+        into.extend(from.iter().map(|(k, v)| (k.clone(), v.clone())));
+    }
+}
+
+/// The median milliseconds of `f` on each of `items`, calling them in turn `reps` times (after
+/// one warm-up call each), so that a change in the machine's speed reaches all alike.
+fn alternating_median_ms<T>(reps: usize, items: &mut [T], mut f: impl FnMut(&mut T)) -> Vec<f64> {
+    items.iter_mut().for_each(&mut f);
+    let mut times = vec![Vec::with_capacity(reps); items.len()];
+    for _ in 0..reps.max(1) {
+        for (item, t) in items.iter_mut().zip(&mut times) {
+            let start = Instant::now();
+            f(item);
+            t.push(start.elapsed().as_secs_f64() * 1000.0);
+        }
+    }
+    times
+        .into_iter()
+        .map(|mut t| {
+            t.sort_by(f64::total_cmp);
+            t[t.len() / 2]
+        })
+        .collect()
+}
+
+/// The machine's bf16 limit as this code reaches it: GFLOP/s of a square `CALIBRATION_N` bf16
+/// product on one thread through the AMX kernel (`agent::fastnet::amx`), median of `reps`.
+fn bf16_peak_gflops(reps: usize) -> f64 {
+    use agent::fastnet::amx::{AView, PackedB, matmul};
+    use agent::fastnet::gemm::View;
+    let n = CALIBRATION_N;
+    let a: Vec<u16> = (0..n * n).map(|i| agent::fastnet::bf16::from_f32(((i * 7 + 3) % 1000) as f32 / 500.0 - 1.0)).collect();
+    let b: Vec<f32> = (0..n * n).map(|i| ((i * 13 + 5) % 1000) as f32 / 500.0 - 1.0).collect();
+    let mut packed = PackedB::default();
+    packed.pack(&b, View::rows(0, n, n, n));
+    let mut c = vec![0f32; n * n];
+    let ms = median_ms(reps, || matmul(&mut c, View::rows(0, n, n, n), false, &a, AView::rows(0, n, n, n), &packed));
+    2.0 * (n * n * n) as f64 / (ms * 1e6)
 }
 
 /// The median time of [`candle_step`] over `runs` runs, ms.
@@ -376,7 +459,17 @@ pub async fn ingest_one(seconds: f64, durability: Durability, tls: bool) -> Resu
 ///
 /// Without `train`, the learner only ingests (its replay never reaches its minimum): the actors'
 /// own rate with nothing else on the cores.
-pub async fn e2e(actors: usize, envs: usize, seconds: f64, train: bool, durability: Durability) -> Result<serde_json::Value> {
+///
+/// `precision` is the run's `[agent] precision` (learner and actors alike).
+pub async fn e2e(
+    actors: usize,
+    envs: usize,
+    seconds: f64,
+    train: bool,
+    durability: Durability,
+    precision: Precision,
+) -> Result<serde_json::Value> {
+    let chosen = precision.resolve().with_context(|| format!("--precision {}", precision.name()))?;
     let exe = std::env::current_exe()?;
     let actor_exe = exe.with_file_name(if cfg!(windows) { "actor.exe" } else { "actor" });
     if !actor_exe.exists() {
@@ -387,6 +480,7 @@ pub async fn e2e(actors: usize, envs: usize, seconds: f64, train: bool, durabili
     let peak = gemm_peak_gflops(threads, 5);
     let mut cfg = RunConfig::default();
     cfg.service.durability = durability;
+    cfg.agent.precision = precision;
     if !train {
         cfg.agent.min_replay = cfg.agent.replay_capacity;
     }
@@ -461,6 +555,7 @@ pub async fn e2e(actors: usize, envs: usize, seconds: f64, train: bool, durabili
         "learner_idle_fraction": ((idle1 - idle0) / secs).clamp(0.0, 1.0),
         "replay_ratio": cfg.agent.replay_ratio,
         "training": train,
+        "precision": if chosen.bf16 { "bf16" } else { "f32" },
         "load_before": load_before,
         "load_after": load_average(),
         "actors": actors,

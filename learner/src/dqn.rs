@@ -77,14 +77,19 @@ impl Dqn {
 
     /// As [`Dqn::new`], computing on `threads` threads.
     #[must_use]
+    ///
+    /// # Panics
+    /// If `cfg.precision` cannot run here (`bf16` without AMX): check it with
+    /// `Precision::resolve` first, as `learner serve` does.
     pub fn with_threads(shape: NetShape, cfg: &AgentConfig, threads: usize) -> Self {
+        let chosen = cfg.precision.resolve().unwrap_or_else(|e| panic!("Dqn: {e}"));
         let online = Params::init(shape, cfg.seed);
         Self {
             shape,
             target: online.clone(),
             online,
             adam: Adam::new(shape, cfg.learning_rate),
-            net: FastNet::new(shape, threads),
+            net: FastNet::with_precision(shape, threads, chosen.bf16),
             grads: Params::zeros(shape),
             huber_delta: cfg.huber_delta,
             grad_clip_norm: cfg.grad_clip_norm,

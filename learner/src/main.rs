@@ -157,8 +157,10 @@ enum BenchCommand {
     /// beside the machine's GEMM calibration: {"updates_per_sec","batch","input","ms_per_update",
     /// "forward_batch1_ms","forward_batch","forward_ms_per_sample","peak_gflops_1_thread",
     /// "peak_gflops" (on --threads), each figure's "…_gflops" and "…_fraction_of_peak","threads",
-    /// "cpu","load_before","load_after"}, and with --reference
-    /// {"candle_ms_per_update","speedup_over_candle"}. Times are medians.
+    /// "cpu","load_before","load_after","precision","amx","peak_gflops_bf16_1_thread"}, and with
+    /// --reference {"candle_ms_per_update","speedup_over_candle"}. With `--precision both` the
+    /// per-precision figures are in {"f32":{…},"bf16":{…}} and their ratios in "bf16_over_f32".
+    /// Times are medians.
     Train {
         /// Input image WIDTHxHEIGHTxCHANNELS.
         #[arg(long, default_value = "84x84x3", value_parser = learner::bench::parse_input)]
@@ -178,13 +180,17 @@ enum BenchCommand {
         /// Also time candle's own convolution on the same update, in the same run.
         #[arg(long)]
         reference: bool,
+        /// Arithmetic: f32, bf16 (AMX), both (alternating, in one process), or auto (what
+        /// `[agent] precision = "auto"` runs here).
+        #[arg(long, default_value = "auto", value_parser = ["auto", "f32", "bf16", "both"])]
+        precision: String,
         /// Print one JSON object on the last line of stdout.
         #[arg(long)]
         json: bool,
     },
     /// Learner here plus N actor processes: {"env_steps_per_sec","updates_per_sec","gflops" (the
     /// forward passes' and updates' arithmetic per second),"peak_gflops" (GEMM calibration on every
-    /// core),"fraction_of_peak","mean_weight_lag","learner_idle_fraction","replay_ratio","training",
+    /// core),"fraction_of_peak","mean_weight_lag","learner_idle_fraction","replay_ratio","training","precision",
     /// "actors","envs_per_actor","cpu","load_before","load_after"}.
     E2e {
         /// Actor processes (the `actor` program next to this one).
@@ -202,6 +208,9 @@ enum BenchCommand {
         /// `ack` (batches acknowledged once in the replay log on disk) or `none`.
         #[arg(long, default_value = "ack", value_parser = parse_durability)]
         durability: agent::config::Durability,
+        /// The run's `[agent] precision`: auto, f32 or bf16 (AMX).
+        #[arg(long, default_value = "auto")]
+        precision: agent::fastnet::Precision,
         /// Print one JSON object on the last line of stdout.
         #[arg(long)]
         json: bool,
@@ -375,22 +384,28 @@ fn main() -> Result<()> {
                 println!("wrote {}", out.display());
                 Ok(())
             }
-            Command::Bench(BenchCommand::Train { input, batch, forward_batch, updates, threads, reference, json }) => {
+            Command::Bench(BenchCommand::Train { input, batch, forward_batch, updates, threads, reference, precision, json }) => {
                 if batch == 0 || forward_batch == 0 || updates == 0 || threads == Some(0) {
                     anyhow::bail!("--batch, --forward-batch, --updates and --threads must be at least 1");
                 }
                 let threads = threads.unwrap_or_else(agent::fastnet::default_threads);
-                let v =
-                    tokio::task::spawn_blocking(move || learner::bench::train(input, batch, forward_batch, updates, threads, reference))
-                        .await??;
+                use agent::fastnet::Precision;
+                let precisions = match precision.as_str() {
+                    "both" => vec![Precision::F32, Precision::Bf16],
+                    one => vec![one.parse::<Precision>().map_err(anyhow::Error::msg)?],
+                };
+                let v = tokio::task::spawn_blocking(move || {
+                    learner::bench::train(input, batch, forward_batch, updates, threads, reference, &precisions)
+                })
+                .await??;
                 print_result(&v, json);
                 Ok(())
             }
-            Command::Bench(BenchCommand::E2e { actors, envs, seconds, no_train, durability, json }) => {
+            Command::Bench(BenchCommand::E2e { actors, envs, seconds, no_train, durability, precision, json }) => {
                 if actors == 0 || envs == 0 || !(seconds > 0.0 && seconds.is_finite()) {
                     anyhow::bail!("--actors and --envs must be at least 1 and --seconds positive");
                 }
-                let v = learner::bench::e2e(actors, envs, seconds, !no_train, durability).await?;
+                let v = learner::bench::e2e(actors, envs, seconds, !no_train, durability, precision).await?;
                 print_result(&v, json);
                 Ok(())
             }

@@ -200,6 +200,13 @@ async fn start_with(opts: ServeOptions, train: Trainer) -> Result<Running> {
     let tls = server_tls(&cfg.service)?;
 
     let shape = cfg.net_shape();
+    let precision = cfg.agent.precision.resolve().context("[agent] precision")?;
+    tracing::info!(
+        bf16 = precision.bf16,
+        "network arithmetic: {} ({})",
+        if precision.bf16 { "bf16 on AMX" } else { "f32" },
+        precision.reason
+    );
     let mut dqn = Dqn::new(shape, &cfg.agent);
     let mut counters = Counters::default();
     if opts.resume {

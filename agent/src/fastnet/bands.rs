@@ -6,7 +6,8 @@
 //! `gemm` already runs on. A convolution output is the same dot product as on one thread; a dense
 //! unit's sum may be ordered differently (Q values within 1e-5 relative, tested).
 
-use super::conv::{self, ConvGeom};
+use super::conv::ConvGeom;
+use super::conv_bf16::Operands;
 use super::gemm::{View, matmul};
 use super::pool::{self, Strided};
 
@@ -34,8 +35,7 @@ fn patch_row(g: &ConvGeom) -> usize {
 /// If `to` interleaves channels of different lines (a channel-major destination).
 #[allow(clippy::too_many_arguments)]
 pub fn conv_pool(
-    input: &[f32],
-    kernel: &[f32],
+    ops: Operands<'_>,
     g: &ConvGeom,
     bias: &[f32],
     pre: &mut [f32],
@@ -50,7 +50,7 @@ pub fn conv_pool(
     let (pre, patches, dst) = (&mut pre[..g.out_len()], &mut patches[..g.rows() * pr], &mut dst[to.base..]);
     let bands = threads.min(g.h / 2).max(1);
     if bands == 1 {
-        conv_pool_lines(input, kernel, g, bias, (0, g.h), pre, patches, dst, line_to);
+        conv_pool_lines(ops, g, bias, (0, g.h), pre, patches, dst, line_to);
         return;
     }
     rayon::scope(|scope| {
@@ -64,7 +64,7 @@ pub fn conv_pool(
             patches_rest = rest;
             let (dst_band, rest) = std::mem::take(&mut dst_rest).split_at_mut((y1 / 2 - y0 / 2) * to.row);
             dst_rest = rest;
-            let mut work = move || conv_pool_lines(input, kernel, g, bias, (y0, y1), pre_band, patch_band, dst_band, line_to);
+            let mut work = move || conv_pool_lines(ops, g, bias, (y0, y1), pre_band, patch_band, dst_band, line_to);
             if band + 1 == bands { work() } else { scope.spawn(move |_| work()) }
         }
     });
@@ -74,8 +74,7 @@ pub fn conv_pool(
 /// output, `patches` their rows' patches and `dst` their pooled lines.
 #[allow(clippy::too_many_arguments)]
 fn conv_pool_lines(
-    input: &[f32],
-    kernel: &[f32],
+    ops: Operands<'_>,
     g: &ConvGeom,
     bias: &[f32],
     (y0, y1): (usize, usize),
@@ -85,15 +84,19 @@ fn conv_pool_lines(
     to: Strided,
 ) {
     let (first, end) = (y0 * g.pw(), (y1 * g.pw()).min(g.rows()));
-    conv::forward_rows(input, kernel, g, first, &mut pre[..(end - first) * g.cout], patches, 1);
+    ops.forward_rows(g, first, &mut pre[..(end - first) * g.cout], patches);
     pool::forward(pre, bias, y1 - y0, g.w, dst, to);
 }
 
-/// [`conv::forward`] of one padded image with its output rows split across up to `threads`
-/// threads.
-pub fn conv(input: &[f32], kernel: &[f32], g: &ConvGeom, out: &mut [f32], patches: &mut [f32], threads: usize) {
+/// The convolution of one padded image (`conv::forward`) with its output rows split across up to
+/// `threads` threads.
+pub fn conv(ops: Operands<'_>, g: &ConvGeom, out: &mut [f32], patches: &mut [f32], threads: usize) {
     let (rows, cout, pr) = (g.rows(), g.cout, patch_row(g));
     let bands = threads.min(g.h).max(1);
+    if bands == 1 {
+        ops.forward_rows(g, 0, &mut out[..rows * cout], &mut patches[..rows * pr]);
+        return;
+    }
     rayon::scope(|scope| {
         let (mut out_rest, mut patches_rest) = (&mut out[..rows * cout], &mut patches[..rows * pr]);
         for band in 0..bands {
@@ -102,7 +105,7 @@ pub fn conv(input: &[f32], kernel: &[f32], g: &ConvGeom, out: &mut [f32], patche
             out_rest = rest;
             let (p, rest) = std::mem::take(&mut patches_rest).split_at_mut((end - first) * pr);
             patches_rest = rest;
-            let mut work = move || conv::forward_rows(input, kernel, g, first, o, p, 1);
+            let mut work = move || ops.forward_rows(g, first, o, p);
             if band + 1 == bands { work() } else { scope.spawn(move |_| work()) }
         }
     });

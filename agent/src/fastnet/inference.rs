@@ -2,6 +2,7 @@
 
 use super::model::FastNet;
 use super::params::Params;
+use super::precision::{Chosen, Precision};
 use crate::shape::NetShape;
 use crate::weights::{self, WeightsError};
 
@@ -29,10 +30,24 @@ impl Inference {
         Self::with_params(Params::init(shape, seed), threads)
     }
 
-    /// The network with these parameters, on `threads` threads.
+    /// The network with these parameters, on `threads` threads, in f32.
     #[must_use]
     pub fn with_params(params: Params, threads: usize) -> Self {
-        let mut net = FastNet::new(params.shape, threads);
+        Self::with_arithmetic(params, threads, false)
+    }
+
+    /// The network initialised from `seed`, in the arithmetic `precision` resolves to here (bf16
+    /// where AMX runs it: faster at the actors' batches too, see docs/PERFORMANCE.md), and what was
+    /// chosen and why, for the caller's log.
+    #[must_use]
+    pub fn with_precision(shape: NetShape, seed: u64, threads: usize, precision: Precision) -> (Self, Chosen) {
+        let chosen = precision.resolve_or_f32();
+        (Self::with_arithmetic(Params::init(shape, seed), threads, chosen.bf16), chosen)
+    }
+
+    /// The network with these parameters, in bf16 when `bf16` (see `FastNet::with_precision`).
+    fn with_arithmetic(params: Params, threads: usize, bf16: bool) -> Self {
+        let mut net = FastNet::with_precision(params.shape, threads, bf16);
         net.pack_kernels(&params);
         Self { params, net, frames: Vec::new() }
     }

@@ -4,25 +4,34 @@
 //! Training and the actors' inference use it; candle's network (`crate::reference`, behind the
 //! `reference` feature) is what it is tested against.
 //!
-//! - [`gemm`]: the bounds-checked safe wrapper around the `gemm` crate (the only `unsafe` code).
+//! - [`gemm`]: the bounds-checked safe wrapper around the `gemm` crate (`unsafe`, with `amx`).
+//! - [`amx`]: AMX detection and the bf16 tile kernel behind a bounds-checked safe interface.
+//! - [`bf16`]: bfloat16 rounding and conversion.
 //! - [`conv`]: 3×3 convolution forward, kernel gradient and input gradient of one image.
+//! - [`conv_bf16`]: the wide layers' convolution on the AMX bf16 kernel.
 //! - [`pool`]: fused bias + ReLU + 2×2 average pooling and its backward pass.
 //! - [`model`]: the whole network, forward and backward, over a batch.
 //! - [`bands`]: one image's layers split across threads (the actors' small batches).
 //! - [`inference`]: acting: greedy actions for a batch of observations.
+//! - [`precision`]: `[agent] precision` (auto, f32, bf16) resolved against the machine.
 //! - [`params`]: parameters in candle's layout, their seeded initialisation, and Adam.
 
+pub mod amx;
 pub mod bands;
+pub mod bf16;
 pub mod conv;
+pub mod conv_bf16;
 pub mod gemm;
 pub mod inference;
 pub mod model;
 pub mod params;
 pub mod pool;
+pub mod precision;
 
 pub use inference::{Inference, argmax};
 pub use model::FastNet;
 pub use params::{Adam, Params};
+pub use precision::Precision;
 
 /// Threads to use by default: every core the process may run on.
 #[must_use]

@@ -7,8 +7,11 @@
 //! layers run on the whole batch with `gemm`'s own threads. A single image (an actor's inference)
 //! is split across the threads instead, by bands of lines and of units (`fastnet::bands`).
 
+use super::amx::PackedB;
 use super::bands;
+use super::bf16;
 use super::conv::{self, ConvGeom};
+use super::conv_bf16::{self, Operands};
 use super::gemm::{View, matmul};
 use super::params::{CONV_B, CONV_W, FC1_B, FC1_W, FC2_B, FC2_W, Params, Q_B, Q_W};
 use super::pool::{self, Strided};
@@ -29,6 +32,13 @@ struct Part {
     /// Gradient of layers 2 and 3's input, conv-out layout, per image.
     in_grad: [Vec<f32>; 3],
     patches: Vec<f32>,
+    /// bf16 path: each layer's padded input in bf16, per image (layers that run on AMX).
+    input_bf16: [Vec<u16>; 3],
+    /// bf16 path, one image at a time: the input transposed, the output gradient packed and
+    /// in bf16.
+    input_t: Vec<u16>,
+    grad_packed: PackedB,
+    grad_bf16: Vec<u16>,
     /// Kernel (k-major) and bias gradient partial sums.
     dk: [Vec<f32>; 3],
     db: [Vec<f32>; 3],
@@ -54,12 +64,31 @@ pub struct FastNet {
     dense_t: Vec<f32>,
     k_major: [Vec<f32>; 3],
     flipped: [Vec<f32>; 3],
+    /// Whether the layers that fit (`conv_bf16::fits`) run in bf16 on AMX, and their kernels
+    /// packed for it.
+    bf16: bool,
+    k_packed: [PackedB; 3],
+    flipped_packed: [PackedB; 3],
 }
 
 impl FastNet {
-    /// A network of `shape` using up to `threads` threads (at least 1).
+    /// A network of `shape` using up to `threads` threads (at least 1), in f32.
     #[must_use]
     pub fn new(shape: NetShape, threads: usize) -> Self {
+        Self::with_precision(shape, threads, false)
+    }
+
+    /// A network of `shape` on up to `threads` threads whose wide convolutions run in bf16 on
+    /// AMX when `bf16` (see `fastnet::precision` for choosing it); the first layer, the dense
+    /// layers, the gradients' sums and everything after them stay f32.
+    ///
+    /// # Panics
+    /// If `bf16` is asked for where AMX is not available.
+    #[must_use]
+    pub fn with_precision(shape: NetShape, threads: usize, bf16: bool) -> Self {
+        if bf16 && let Err(why) = super::amx::available() {
+            panic!("FastNet::with_precision: bf16 without AMX ({why})");
+        }
         let (f, mut h, mut w) = (shape.filters, shape.height, shape.width);
         let mut geoms = [ConvGeom { h, w, cin: shape.channels, cout: f }; 3];
         for g in &mut geoms {
@@ -82,7 +111,21 @@ impl FastNet {
             dense_t: Vec::new(),
             k_major: Default::default(),
             flipped: Default::default(),
+            bf16,
+            k_packed: Default::default(),
+            flipped_packed: Default::default(),
         }
+    }
+
+    /// Whether this network computes its wide convolutions in bf16.
+    #[must_use]
+    pub fn is_bf16(&self) -> bool {
+        self.bf16
+    }
+
+    /// Whether layer `l` runs on the bf16 kernel.
+    fn layer_bf16(&self, l: usize) -> bool {
+        self.bf16 && conv_bf16::fits(&self.geoms[l])
     }
 
     fn flat(&self) -> usize {
@@ -137,6 +180,9 @@ impl FastNet {
     pub fn pack_kernels(&mut self, params: &Params) {
         for (l, g) in self.geoms.iter().enumerate() {
             conv::kernel_k_major(&params.values[CONV_W[l]], g, &mut self.k_major[l]);
+            if self.layer_bf16(l) {
+                self.k_packed[l].pack(&self.k_major[l], View::rows(0, 9 * g.cin, g.cout, g.cout));
+            }
         }
     }
 
@@ -177,7 +223,8 @@ impl FastNet {
         let conv_flat = flat - s.scalars;
         // One part: the image's layers are split across the threads; several: one thread each.
         let bands = if self.parts.len() == 1 { self.threads } else { 1 };
-        let (geoms, k_major) = (&self.geoms, &self.k_major);
+        let kernels = Kernels { k_major: &self.k_major, packed: &self.k_packed, bf16: [0, 1, 2].map(|l| self.layer_bf16(l)) };
+        let geoms = &self.geoms;
         let n = self.parts.len();
         let mut x_rest = &mut self.x[..];
         std::thread::scope(|scope| {
@@ -185,7 +232,7 @@ impl FastNet {
                 let (x, rest) = std::mem::take(&mut x_rest).split_at_mut(part.images * flat);
                 x_rest = rest;
                 let imgs = &images[part.start * frame..(part.start + part.images) * frame];
-                let mut work = move || part.forward(geoms, k_major, params, imgs, x, flat, bands);
+                let mut work = move || part.forward(geoms, kernels, params, imgs, x, flat, bands);
                 if i + 1 == n { work() } else { drop(scope.spawn(work)) }
             }
         });
@@ -219,14 +266,23 @@ impl FastNet {
 
         for (l, g) in self.geoms.iter().enumerate().skip(1) {
             conv::kernel_flipped(&params.values[CONV_W[l]], g, &mut self.flipped[l]);
+            if self.bf16 && conv_bf16::fits(&g.transposed()) {
+                self.flipped_packed[l].pack(&self.flipped[l], View::rows(0, 9 * g.cout, g.cin, g.cin));
+            }
         }
         let gemm_threads = if self.parts.len() == 1 { self.threads } else { 1 };
-        let (geoms, flipped, dx) = (&self.geoms, &self.flipped, &self.dx);
+        let flipped = Kernels {
+            k_major: &self.flipped,
+            packed: &self.flipped_packed,
+            bf16: [0, 1, 2].map(|l| self.bf16 && l > 0 && conv_bf16::fits(&self.geoms[l].transposed())),
+        };
+        let bf16_grads = [0, 1, 2].map(|l| self.layer_bf16(l));
+        let (geoms, dx) = (&self.geoms, &self.dx);
         let n = self.parts.len();
         std::thread::scope(|scope| {
             for (i, part) in self.parts.iter_mut().enumerate() {
                 let dx = &dx[part.start * flat..(part.start + part.images) * flat];
-                let mut work = move || part.backward(geoms, flipped, params, dx, flat, gemm_threads);
+                let mut work = move || part.backward(geoms, flipped, bf16_grads, params, dx, flat, gemm_threads);
                 if i + 1 == n { work() } else { drop(scope.spawn(work)) }
             }
         });
@@ -250,7 +306,7 @@ impl Part {
     fn forward(
         &mut self,
         geoms: &[ConvGeom; 3],
-        k_major: &[Vec<f32>; 3],
+        kernels: Kernels<'_>,
         params: &Params,
         images: &[u8],
         x: &mut [f32],
@@ -274,18 +330,22 @@ impl Part {
                 let pre = &mut self.pre[l][img * po..(img + 1) * po];
                 let (inputs, next_inputs) = self.input.split_at_mut(l + 1);
                 let input = &inputs[l][img * pi..(img + 1) * pi];
+                let ops = if kernels.bf16[l] {
+                    self.input_bf16[l].resize(self.images * pi, 0);
+                    let input_bf16 = &mut self.input_bf16[l][img * pi..(img + 1) * pi];
+                    bf16::convert(input, input_bf16);
+                    Operands::Bf16 { input: input_bf16, kernel: &kernels.packed[l] }
+                } else {
+                    Operands::F32 { input, kernel: &kernels.k_major[l] }
+                };
                 let bias = &params.values[CONV_B[l]];
                 if l < 2 {
                     let next = &geoms[l + 1];
                     let dst = &mut next_inputs[0][img * next.padded_in()..(img + 1) * next.padded_in()];
                     let to = Strided::padded(next.w, next.cin);
-                    bands::conv_pool(input, &k_major[l], g, bias, pre, &mut self.patches, dst, to, bands);
+                    bands::conv_pool(ops, g, bias, pre, &mut self.patches, dst, to, bands);
                 } else {
-                    if bands > 1 {
-                        bands::conv(input, &k_major[l], g, pre, &mut self.patches, bands);
-                    } else {
-                        conv::forward(input, &k_major[l], g, pre, &mut self.patches, 1);
-                    }
+                    bands::conv(ops, g, pre, &mut self.patches, bands);
                     let dst = &mut x[img * flat..(img + 1) * flat];
                     pool::forward(pre, bias, g.h, g.w, dst, Strided::channel_major(g.h / 2, g.w / 2));
                 }
@@ -295,7 +355,17 @@ impl Part {
 
     /// The backward pass of the convolution stack for this part's images, from their rows of
     /// `dx`; leaves the partial kernel and bias gradients in `dk` and `db`.
-    fn backward(&mut self, geoms: &[ConvGeom; 3], flipped: &[Vec<f32>; 3], params: &Params, dx: &[f32], flat: usize, threads: usize) {
+    #[allow(clippy::too_many_arguments)]
+    fn backward(
+        &mut self,
+        geoms: &[ConvGeom; 3],
+        flipped: Kernels<'_>,
+        bf16_grads: [bool; 3],
+        params: &Params,
+        dx: &[f32],
+        flat: usize,
+        threads: usize,
+    ) {
         for (l, g) in geoms.iter().enumerate() {
             self.dk[l].fill(0.0);
             self.db[l].fill(0.0);
@@ -323,21 +393,36 @@ impl Part {
                     pool::backward(pre, bias, g.h, g.w, upstream, Strided::conv_out(next.w, next.cin), grad_padded, &mut self.db[l]);
                 }
                 let input = &self.input[l][img * pi..(img + 1) * pi];
-                conv::kernel_grad(input, grad_padded, g, &mut self.dk[l], &mut self.patches, threads);
+                if bf16_grads[l] {
+                    conv_bf16::transpose_padded(input, g, &mut self.input_t);
+                    conv_bf16::pack_output_grad(grad_padded, g, &mut self.grad_packed);
+                    conv_bf16::kernel_grad(&self.input_t, &self.grad_packed, g, &mut self.dk[l]);
+                } else {
+                    conv::kernel_grad(input, grad_padded, g, &mut self.dk[l], &mut self.patches, threads);
+                }
                 if l > 0 {
                     let len = g.in_grad_len();
-                    conv::input_grad(
-                        grad_padded,
-                        &flipped[l],
-                        g,
-                        &mut self.in_grad[l][img * len..(img + 1) * len],
-                        &mut self.patches,
-                        threads,
-                    );
+                    let in_grad = &mut self.in_grad[l][img * len..(img + 1) * len];
+                    if flipped.bf16[l] {
+                        self.grad_bf16.resize(pg, 0);
+                        bf16::convert(grad_padded, &mut self.grad_bf16);
+                        let t = g.transposed();
+                        conv_bf16::forward_rows(&self.grad_bf16, &flipped.packed[l], &t, 0, &mut in_grad[..t.rows() * t.cout]);
+                    } else {
+                        conv::input_grad(grad_padded, &flipped.k_major[l], g, in_grad, &mut self.patches, threads);
+                    }
                 }
             }
         }
     }
+}
+
+/// Each layer's kernels in both layouts and which one it runs on.
+#[derive(Debug, Clone, Copy)]
+struct Kernels<'a> {
+    k_major: &'a [Vec<f32>; 3],
+    packed: &'a [PackedB; 3],
+    bf16: [bool; 3],
 }
 
 /// A layer's weight and bias gradients (bias right after weight in the parameter order).

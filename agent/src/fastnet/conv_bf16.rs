@@ -1,0 +1,160 @@
+//! The 3×3 convolution of `conv` on the AMX bf16 kernel (`amx`), for layers whose K = 3·C is a
+//! whole number of tile steps (C a multiple of 32: the paper's second and third layers):
+//! the same GEMMs over the same padded layouts, with the image read in place as bf16 (one
+//! segment per kernel row) and f32 accumulation.
+//!
+//! The kernel gradient reduces over output rows, so it reads the padded input transposed
+//! ([`transpose_padded`]: channel-major planes) and the output gradient in pairs of rows
+//! ([`amx::PackedB`]); the input gradient is the forward convolution of the bf16 output gradient
+//! with the flipped kernel, as in `conv`.
+
+use super::amx::{self, AView, K_STEP, PackedB};
+use super::bf16;
+use super::conv::{self, ConvGeom};
+use super::gemm::View;
+
+/// What one convolution multiplies: an f32 padded image and k-major kernel (`conv`), or the same
+/// image in bf16 and the kernel packed for the tiles.
+#[derive(Debug, Clone, Copy)]
+pub enum Operands<'a> {
+    F32 { input: &'a [f32], kernel: &'a [f32] },
+    Bf16 { input: &'a [u16], kernel: &'a PackedB },
+}
+
+impl Operands<'_> {
+    /// Output rows `first..first + out.len() / cout` of the convolution (`conv::forward_rows`).
+    pub fn forward_rows(&self, g: &ConvGeom, first: usize, out: &mut [f32], patches: &mut [f32]) {
+        match *self {
+            Self::F32 { input, kernel } => conv::forward_rows(input, kernel, g, first, out, patches, 1),
+            Self::Bf16 { input, kernel } => forward_rows(input, kernel, g, first, out),
+        }
+    }
+}
+
+/// Whether a layer of this geometry runs on the bf16 kernel.
+#[must_use]
+pub fn fits(g: &ConvGeom) -> bool {
+    !g.gathers() && (3 * g.cin).is_multiple_of(K_STEP)
+}
+
+/// Output rows `first..first + out.len() / cout` of one bf16 padded image convolved with `kernel`
+/// (the k-major kernel packed, `9·cin × cout`), bias excluded.
+///
+/// # Panics
+/// If the layer does not [`fits`] or the slices do not match the geometry.
+pub fn forward_rows(input: &[u16], kernel: &PackedB, g: &ConvGeom, first: usize, out: &mut [f32]) {
+    assert!(fits(g), "conv_bf16: a layer of {} input channels", g.cin);
+    let n = out.len() / g.cout;
+    let av = AView { offset: first * g.cin, rows: n, row_stride: g.cin, segments: 3, seg_len: 3 * g.cin, seg_stride: g.pw() * g.cin };
+    amx::matmul(out, View::rows(0, n, g.cout, g.cout), false, input, av, kernel);
+}
+
+/// Values of one channel's plane in [`transpose_padded`]'s layout: the padded image's pixels and
+/// a tail of zeros for the kernel gradient's last tile step to read.
+#[must_use]
+pub fn plane(g: &ConvGeom) -> usize {
+    (g.h + 2) * g.pw() + K_STEP
+}
+
+/// The padded image `input` (f32, pixel-major) as bf16 channel planes of [`plane`] values.
+pub fn transpose_padded(input: &[f32], g: &ConvGeom, out: &mut Vec<u16>) {
+    let (c, p) = (g.cin, plane(g));
+    out.clear();
+    out.resize(c * p, 0);
+    for (px, values) in input[..g.padded_in()].chunks_exact(c).enumerate() {
+        for (ch, &v) in values.iter().enumerate() {
+            out[ch * p + px] = bf16::from_f32(v);
+        }
+    }
+}
+
+/// The padded output gradient (f32, `padded_out` values) as the right matrix of the kernel
+/// gradient: output row q's gradient (padded row q + pw + 1) in pairs of rows.
+pub fn pack_output_grad(grad_padded: &[f32], g: &ConvGeom, out: &mut PackedB) {
+    out.pack(grad_padded, View::rows((g.pw() + 1) * g.cout, g.rows(), g.cout, g.cout));
+}
+
+/// Adds one image's k-major kernel gradient to `dk` (`9·cin × cout`), from its transposed input
+/// ([`transpose_padded`]) and packed output gradient ([`pack_output_grad`]).
+///
+/// # Panics
+/// If the slices do not match the geometry.
+pub fn kernel_grad(input_t: &[u16], grad: &PackedB, g: &ConvGeom, dk: &mut [f32]) {
+    let (c, pw, p) = (g.cin, g.pw(), plane(g));
+    let (k_pad, _) = grad.dims();
+    for ky in 0..3 {
+        for kx in 0..3 {
+            let k = ky * 3 + kx;
+            // Row c of this kernel tap: channel c's plane from pixel q + ky·pw + kx, q over the
+            // output rows (the padded tail of the gradient is zero).
+            let av = AView::rows(ky * pw + kx, c, k_pad, p);
+            amx::matmul(dk, View::rows(k * c * g.cout, c, g.cout, g.cout), true, input_t, av, grad);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::amx::tests::amx_or_skip;
+    use super::*;
+
+    fn values(n: usize, seed: f32) -> Vec<f32> {
+        (0..n).map(|i| ((i as f32 + seed) * 0.618).sin()).collect()
+    }
+
+    fn rounded(v: &[f32]) -> Vec<f32> {
+        v.iter().map(|&x| bf16::to_f32(bf16::from_f32(x))).collect()
+    }
+
+    /// A padded image with zero borders (as the network keeps them).
+    fn padded(g: &ConvGeom, c: usize, seed: f32) -> Vec<f32> {
+        let mut img = vec![0f32; (g.h + 2) * g.pw() * c];
+        let v = values(img.len(), seed);
+        for y in 0..g.h {
+            for x in 0..g.w {
+                let p = ((y + 1) * g.pw() + x + 1) * c;
+                img[p..p + c].copy_from_slice(&v[p..p + c]);
+            }
+        }
+        img
+    }
+
+    /// The bf16 convolution and its gradients against `conv`'s f32 ones on bf16-rounded inputs:
+    /// equal up to f32 accumulation error.
+    #[test]
+    fn forward_and_gradients_match_the_f32_convolution_of_rounded_inputs() {
+        if !amx_or_skip("forward_and_gradients_match_the_f32_convolution_of_rounded_inputs") {
+            return;
+        }
+        let g = ConvGeom { h: 7, w: 9, cin: 32, cout: 20 };
+        assert!(fits(&g));
+        let input = rounded(&padded(&g, g.cin, 0.3));
+        let kernel = rounded(&values(9 * g.cin * g.cout, 1.7));
+        let mut packed = PackedB::default();
+        packed.pack(&kernel, View::rows(0, 9 * g.cin, g.cout, g.cout));
+        let mut input_b = vec![0u16; input.len()];
+        bf16::convert(&input, &mut input_b);
+        let close = |x: &[f32], e: &[f32], what: &str| {
+            for (i, (a, b)) in x.iter().zip(e).enumerate() {
+                assert!((a - b).abs() <= 1e-4 * (1.0 + b.abs()), "{what}[{i}]: {a} vs {b}");
+            }
+        };
+        let (mut out, mut expected) = (vec![0f32; g.rows() * g.cout], vec![0f32; g.rows() * g.cout]);
+        forward_rows(&input_b, &packed, &g, 0, &mut out);
+        conv::forward(&input, &kernel, &g, &mut expected, &mut [], 1);
+        close(&out, &expected, "forward");
+        // A band of rows starting inside the image.
+        let mut band = vec![0f32; 10 * g.cout];
+        forward_rows(&input_b, &packed, &g, 13, &mut band);
+        close(&band, &expected[13 * g.cout..23 * g.cout], "band");
+
+        let grad = rounded(&padded(&g, g.cout, 2.9));
+        let (mut dk, mut dk_expected) = (vec![0.5f32; 9 * g.cin * g.cout], vec![0.5f32; 9 * g.cin * g.cout]);
+        let (mut input_t, mut grad_packed) = (Vec::new(), PackedB::default());
+        transpose_padded(&input, &g, &mut input_t);
+        pack_output_grad(&grad, &g, &mut grad_packed);
+        kernel_grad(&input_t, &grad_packed, &g, &mut dk);
+        conv::kernel_grad(&input, &grad, &g, &mut dk_expected, &mut [], 1);
+        close(&dk, &dk_expected, "kernel gradient");
+    }
+}
