@@ -13,6 +13,7 @@ mod predict;
 mod record;
 mod routes;
 mod run;
+mod run_town;
 mod split;
 mod stepping;
 #[cfg(test)]
