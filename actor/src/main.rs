@@ -8,11 +8,13 @@ mod episode;
 mod eval;
 mod greedy;
 mod link;
+mod picture;
 mod policy;
 mod predict;
 mod record;
 mod routes;
 mod run;
+mod run_town;
 mod split;
 mod stepping;
 #[cfg(test)]
@@ -80,6 +82,9 @@ enum Command {
     /// with a summary of the network's inputs: for checking a checkpoint loaded elsewhere
     /// (docs/MODEL.md).
     Predict(predict::PredictArgs),
+    /// A town seen whole from above and through the front camera, as PNGs (to check a map by
+    /// eye).
+    Picture(picture::PictureArgs),
     /// Benchmarks.
     #[command(subcommand)]
     Bench(bench::BenchCommand),
@@ -100,11 +105,12 @@ fn main() -> Result<()> {
         Some(Command::Drive(args)) => drive::run(&args),
         Some(Command::Eval(args)) => eval::run(&args),
         Some(Command::Predict(args)) => predict::run(&args),
+        Some(Command::Picture(args)) => picture::run(&args),
         Some(Command::Bench(cmd)) => bench::run(&cmd),
         None => {
             let Some(learner) = cli.learner else {
                 anyhow::bail!(
-                    "nothing to do: give --learner ADDR to run as an actor, or a subcommand (train, eval, drive, predict, bench); see --help"
+                    "nothing to do: give --learner ADDR to run as an actor, or a subcommand (train, eval, drive, predict, picture, bench); see --help"
                 );
             };
             let name = cli.id.unwrap_or_else(|| format!("{}-{}", hostname(), std::process::id()));

@@ -173,6 +173,10 @@ pub async fn run(opts: ActorOptions) -> Result<()> {
     let env_cfg: EnvConfig = toml::from_str(&reg.env_config_toml).context("the learner's [env] configuration")?;
     let agent_cfg: AgentConfig = toml::from_str(&reg.agent_config_toml).context("the learner's [agent] configuration")?;
     let run_cfg = RunConfig { env: env_cfg, agent: agent_cfg, ..RunConfig::default() };
+    // Built once, before stepping: a map that does not arrive whole or does not build stops the
+    // actor here, with the reason.
+    let town = crate::run_town::run_town(&run_cfg.env, &reg)?;
+    tracing::info!(town = %town.map.name, lanes = town.map.lanes.len(), map_file = %reg.map_name, map_hash = %format!("{:016x}", reg.map_hash), "driving the run's town");
 
     // The stepping thread: environments and inference.
     let stepper = {
@@ -181,7 +185,7 @@ pub async fn run(opts: ActorOptions) -> Result<()> {
         let (envs, seed, index, stream) = (opts.envs, opts.seed, reg.actor_index, reg.episode_stream);
         let (batch_steps, buffer_steps) = (opts.batch_steps, opts.buffer_steps);
         std::thread::Builder::new().name("step".into()).spawn(move || {
-            let r = step_loop(&cfg, &link, envs, seed, index, stream, batch_steps, buffer_steps);
+            let r = step_loop(&cfg, &town, &link, envs, seed, index, stream, batch_steps, buffer_steps);
             link.stepper_done.store(true, Ordering::SeqCst);
             r
         })?

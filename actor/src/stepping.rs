@@ -2,6 +2,7 @@
 //! per step, ε-greedy exploration, and the steps handed to the outbox in batches. It never waits
 //! on the learner: new weights are swapped in between steps.
 
+use std::sync::Arc;
 use std::sync::atomic::Ordering;
 
 use agent::config::RunConfig;
@@ -20,6 +21,7 @@ use crate::link::Link;
 #[allow(clippy::too_many_arguments)]
 pub fn step_loop(
     cfg: &RunConfig,
+    town: &Arc<Town>,
     link: &Link,
     n: usize,
     seed: u64,
@@ -28,7 +30,6 @@ pub fn step_loop(
     batch_steps: usize,
     buffer_steps: usize,
 ) -> Result<()> {
-    let town = Town::default_town();
     anyhow::ensure!(cfg.env.camera.is_some(), "the run has no camera configured");
     let shape = cfg.net_shape();
     // One thread: an actor's batch is a few frames, and actors share the cores with each other

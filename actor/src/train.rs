@@ -33,6 +33,10 @@ pub struct TrainArgs {
     /// actors 0..N.
     #[arg(long)]
     pub seed: Option<u64>,
+    /// The town to train on (`[env] map`): `default_town` (the default), `held_out_town` or a map
+    /// file, the text format or OpenDRIVE `.xodr`. The learner sends its content to the actors.
+    #[arg(long, value_name = "TOWN|FILE")]
+    pub map: Option<String>,
     /// Stop (checkpoint written, like Ctrl-C) once the run has trained this many minutes in
     /// total, counting earlier sessions of a resumed run.
     #[arg(long, alias = "minutes", value_name = "MINUTES")]
@@ -85,8 +89,8 @@ pub async fn run(args: &TrainArgs) -> Result<()> {
     let resume = args.run_dir.join("checkpoint").exists() || args.run_dir.join("checkpoint.old").exists();
     let config = if resume {
         eprintln!("resuming the run in {}", args.run_dir.display());
-        if args.config.is_some() || args.preset.is_some() || args.seed.is_some() {
-            eprintln!("(the run's saved configuration applies: --config, --preset and --seed are ignored when resuming)");
+        if args.config.is_some() || args.preset.is_some() || args.seed.is_some() || args.map.is_some() {
+            eprintln!("(the run's saved configuration applies: --config, --preset, --seed and --map are ignored when resuming)");
         }
         None
     } else {
@@ -336,7 +340,7 @@ fn shell_word(s: &str) -> String {
 /// The configuration file to start a new run with: `--config` as given, or — when `--preset` or
 /// `--seed` ask for more — the effective configuration written to `RUN_DIR/requested-config.toml`.
 fn requested_config(args: &TrainArgs) -> Result<Option<PathBuf>> {
-    if args.config.is_some() && args.seed.is_none() {
+    if args.config.is_some() && args.seed.is_none() && args.map.is_none() {
         return Ok(args.config.clone());
     }
     let preset = args.preset.clone().or_else(|| args.config.is_none().then(|| DEFAULT_PRESET.to_owned()));
@@ -350,6 +354,12 @@ fn requested_config(args: &TrainArgs) -> Result<Option<PathBuf>> {
     };
     if let Some(seed) = args.seed {
         cfg.agent.seed = seed;
+    }
+    if let Some(map) = &args.map {
+        // A file by its absolute path, so that resuming from another directory finds it.
+        let embedded = sim_core::map::EMBEDDED_TOWNS.iter().any(|(name, _)| name == map);
+        let path = if embedded { map.clone() } else { std::path::absolute(map).map_or_else(|_| map.clone(), |p| p.display().to_string()) };
+        cfg.env.map = Some(path);
     }
     std::fs::create_dir_all(&args.run_dir).with_context(|| format!("creating run directory {}", args.run_dir.display()))?;
     let path = args.run_dir.join("requested-config.toml");

@@ -11,6 +11,10 @@ pub const FIELD_DOCS: &[(&str, &str)] = &[
         "env.variant",
         "`hybrid` (the paper's agent: the network sees d, the reward has r_w) or `end_to_end` (camera and speed only, no r_w).",
     ),
+    (
+        "env.map",
+        "The town to train on: `default_town` (default), `held_out_town` or a map file (text format or OpenDRIVE `.xodr`, relative to the learner's directory); the learner sends it to every actor.",
+    ),
     ("env.dt", "Simulation step, seconds (default 0.1, the paper's 10 Hz)."),
     ("env.waypoint_spacing", "Spacing of the planner's waypoints along the route, metres (default 8, the paper's)."),
     ("env.route_length_min", "Shortest random training route, metres (default 50)."),
@@ -185,7 +189,7 @@ pub const FIELD_DOCS: &[(&str, &str)] = &[
 
 /// Optional fields that are absent by default: shown commented out in their table, with a value
 /// to start from.
-const OPTIONAL: &[(&str, &str)] = &[("env.traffic.parked_car_ahead", "10.0"), ("env.reward.clip", "1.0")];
+const OPTIONAL: &[(&str, &str)] = &[("env.map", "\"Town01.xodr\""), ("env.traffic.parked_car_ahead", "10.0"), ("env.reward.clip", "1.0")];
 
 /// What a field or table means, by dotted path (`agent.gamma`, `env.camera`).
 #[must_use]

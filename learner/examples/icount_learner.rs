@@ -221,6 +221,7 @@ fn status(calls: u64) -> anyhow::Result<u64> {
     let shared = Shared {
         run_id: counters.run_id.clone(),
         cfg: cfg.clone(),
+        map: None,
         started: Instant::now(),
         shape,
         frame_bytes: frame,

@@ -16,6 +16,7 @@ pub mod prometheus;
 pub mod records;
 pub mod replay;
 pub mod run_lock;
+pub mod run_map;
 pub mod serve;
 pub mod service;
 pub mod state;

@@ -26,6 +26,7 @@ use crate::progress::RateMeter;
 use crate::prometheus::serve_prometheus;
 use crate::replay::{Replay, ReplayConfig};
 use crate::run_lock::RunLock;
+use crate::run_map::RunMap;
 use crate::service::LearnerService;
 use crate::state::{PublishedWeights, Shared, TrainStats};
 use crate::tls::{Alpn, ServerTls, ServerTlsFiles};
@@ -196,6 +197,11 @@ async fn start_with(opts: ServeOptions, train: Trainer) -> Result<Running> {
         }
     }
     cfg.validate().map_err(|(field, message)| anyhow::anyhow!("config field `{field}`: {message}"))?;
+    let map = RunMap::read(&cfg.env, cfg.service.max_message_bytes)?;
+    if let Some(m) = &map {
+        m.check_run_dir(&run_dir, opts.resume)?;
+        tracing::info!(map = %m.name, bytes = m.text.len(), hash = %format!("{:016x}", m.hash), "the run's map, sent to every actor");
+    }
     let token = opts.auth_token_file.as_deref().map(proto::client::read_token).transpose()?;
     let tls = server_tls(&cfg.service)?;
 
@@ -249,6 +255,7 @@ async fn start_with(opts: ServeOptions, train: Trainer) -> Result<Running> {
     let shared = Arc::new(Shared {
         run_id: counters.run_id.clone(),
         cfg: cfg.clone(),
+        map,
         started: Instant::now(),
         shape,
         frame_bytes,

@@ -86,6 +86,7 @@ impl Learner for LearnerService {
         tracing::info!(actor_id = %id, name = %r.name, index, envs = r.envs, "actor registered");
         let env_toml = toml::to_string(&s.cfg.env).map_err(|e| Status::internal(e.to_string()))?;
         let agent_toml = toml::to_string(&s.cfg.agent).map_err(|e| Status::internal(e.to_string()))?;
+        let (map_name, map_text, map_hash) = s.map.as_ref().map_or_else(Default::default, |m| (m.name.clone(), m.text.clone(), m.hash));
         Ok(Response::new(pb::RegisterResponse {
             actor_id: id,
             actor_index: index,
@@ -97,6 +98,9 @@ impl Learner for LearnerService {
             max_batch_steps: MAX_STEPS_PER_BATCH as u32,
             run_env_steps,
             episode_stream: episode_stream(first_life, run_env_steps, n),
+            map_name,
+            map_text,
+            map_hash,
         }))
     }
 

@@ -113,6 +113,9 @@ pub struct TrainStats {
 #[derive(Debug)]
 pub struct Shared {
     pub cfg: RunConfig,
+    /// The map file the run drives (`[env] map`), sent to actors at Register; none for the
+    /// embedded towns.
+    pub map: Option<crate::run_map::RunMap>,
     pub run_id: String,
     pub started: Instant,
     pub shape: NetShape,

@@ -20,11 +20,16 @@ use crate::reward::RewardConfig;
 use crate::traffic::IdmParams;
 use crate::vehicle::VehicleParams;
 
-/// Everything an environment needs besides the map.
+/// Everything an environment needs besides the map, and which map a run drives (`map`: the
+/// caller builds the town, `Env::new` takes it).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct EnvConfig {
     pub variant: Variant,
+    /// The town a run trains on: an embedded town's name (`default_town`, `held_out_town`) or a
+    /// map file, the text format or OpenDRIVE `.xodr` (default: none, the default town).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub map: Option<String>,
     /// Simulation step, seconds (default 0.1, the paper's 10 Hz).
     pub dt: f32,
     /// Spacing of the planner's waypoints along the route, metres (default 8, the paper's).
@@ -53,6 +58,7 @@ impl Default for EnvConfig {
     fn default() -> Self {
         Self {
             variant: Variant::Hybrid,
+            map: None,
             dt: 0.1,
             waypoint_spacing: 8.0,
             route_length_min: 50.0,
@@ -102,6 +108,9 @@ fn positive(x: f32, field: &str) -> Result<(), ConfigError> {
 impl EnvConfig {
     /// Checks every field; the error names the first one out of range.
     pub fn validate(&self) -> Result<(), ConfigError> {
+        if let Some(m) = &self.map {
+            check(!m.trim().is_empty(), "map", || "is empty: name an embedded town (default_town, held_out_town) or a map file".into())?;
+        }
         positive(self.dt, "dt")?;
         check(self.dt <= 1.0, "dt", || format!("{} s is too coarse; use at most 1.0", self.dt))?;
         positive(self.waypoint_spacing, "waypoint_spacing")?;
@@ -172,5 +181,7 @@ mod tests {
         let mut c = EnvConfig::default();
         c.vehicle.wheelbase = 9.0;
         assert_eq!(c.validate().unwrap_err().field, "vehicle.wheelbase");
+        let c = EnvConfig { map: Some(" ".into()), ..EnvConfig::default() };
+        assert_eq!(c.validate().unwrap_err().field, "map");
     }
 }

@@ -30,12 +30,15 @@ fn is_driving(kind: &str) -> bool {
 }
 
 /// What a lane type paints: driving lanes the road, strips beside them a drivable shoulder,
-/// sidewalks, curbs and borders the not-drivable edge.
+/// sidewalks, curbs and medians the not-drivable edge. A `border` is "a hard border at the edge
+/// of a road, the same height as the drivable lane" (OpenDRIVE 1.6, lane types): drivable ground, as a
+/// shoulder, unlike the raised `curb`. (esmini's towns put a 0.3 m border between the lane and
+/// the sidewalk; painted as sidewalk, a car leaving a tight left turn clipped it.)
 fn surface_of(kind: &str) -> Option<Surface> {
     match kind {
         k if is_driving(k) => Some(Surface::Road),
-        "shoulder" | "parking" | "biking" | "stop" | "restricted" | "bidirectional" => Some(Surface::Shoulder),
-        "sidewalk" | "border" | "curb" | "median" => Some(Surface::Sidewalk),
+        "shoulder" | "border" | "parking" | "biking" | "stop" | "restricted" | "bidirectional" => Some(Surface::Shoulder),
+        "sidewalk" | "curb" | "median" => Some(Surface::Sidewalk),
         _ => None,
     }
 }
