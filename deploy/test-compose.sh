@@ -15,16 +15,27 @@
 #   5. disconnect one actor from the network for 20 s: the learner sees it silent; reconnected, it
 #      streams again;
 #   6. `down -v`: containers, network and volume are gone.
+# By default everything runs over mutual TLS with token auth (deploy/docker-compose.tls.yml over
+# the base file, certificates made for the run by the image's `learner certs`), and the learner is
+# checked to refuse a client without a certificate, one without the token, and plaintext;
+# `--plaintext` runs the base file alone.
 # Prints each check; exits non-zero on the first failure (with the containers' logs). Everything
 # runs under a unique compose project, removed on exit whatever happens.
 #
-#   bash deploy/test-compose.sh [--no-build]     (--no-build: use the existing hybrid-drive:latest)
+#   bash deploy/test-compose.sh [--no-build] [--plaintext]   (--no-build: use the existing hybrid-drive:latest)
 set -euo pipefail
 repo=$(cd "$(dirname "$0")/.." && pwd)
 cd "$repo"
 
 build=1
-[[ ${1:-} == --no-build ]] && build=0
+tls=1
+for arg in "$@"; do
+  case $arg in
+    --no-build) build=0 ;;
+    --plaintext) tls=0 ;;
+    *) echo "test-compose.sh: unknown argument $arg (expected --no-build, --plaintext)" >&2; exit 2 ;;
+  esac
+done
 
 t0=$SECONDS
 say() { printf '[%4ds] %s\n' $((SECONDS - t0)) "$*"; }
@@ -50,7 +61,20 @@ export HD_CONFIG=$repo/deploy/compose.toml
 export HD_ENVS=2
 # Published on loopback at ports the engine picks: no clash with a deployment already running.
 export HD_BIND=127.0.0.1 HD_GRPC_PORT=0 HD_METRICS_PORT=0
-c() { "${compose[@]}" -p "$project" -f deploy/docker-compose.yml "$@"; }
+files=(-f deploy/docker-compose.yml)
+# How the test's own clients inside the containers reach the learner.
+addr=127.0.0.1:50051
+client=()
+auth=()
+if ((tls)); then
+  files+=(-f deploy/docker-compose.tls.yml)
+  certs=$(mktemp -d)
+  export HD_TLS_DIR=$certs
+  addr=https://127.0.0.1:50051
+  client=(--tls-ca /etc/hybrid-drive-tls/ca.pem --tls-cert /etc/hybrid-drive-tls/client.pem --tls-key /etc/hybrid-drive-tls/client-key.pem)
+  auth=(--auth-token-file /etc/hybrid-drive-tls/token)
+fi
+c() { "${compose[@]}" -p "$project" "${files[@]}" "$@"; }
 
 finished=0
 cleanup() {
@@ -63,6 +87,7 @@ cleanup() {
     done
   fi
   c down -v --remove-orphans -t 10 >/dev/null 2>&1 || true
+  [[ -n ${certs:-} ]] && rm -rf "$certs"
   exit "$rc"
 }
 trap cleanup EXIT
@@ -72,7 +97,7 @@ trap 'exit 130' INT TERM
 
 # The learner's status as JSON (empty when it does not answer).
 status() {
-  docker exec "$learner" learner status --addr 127.0.0.1:50051 --json 2>/dev/null | tail -n 1 || true
+  docker exec "$learner" learner status --addr "$addr" "${client[@]}" "${auth[@]}" --json 2>/dev/null | tail -n 1 || true
 }
 # q 'PYTHON EXPRESSION' [ARGS...]: evaluates the expression over the status `s` (a dict); with
 # `args` the extra arguments. Prints the result; prints nothing and fails when there is no status.
@@ -130,6 +155,15 @@ fi
 docker run --rm --entrypoint learner "$HD_IMAGE" --version >/dev/null || fail "the image does not run learner"
 docker run --rm --entrypoint actor "$HD_IMAGE" --version >/dev/null || fail "the image does not run actor"
 pass "the image runs learner and actor"
+if ((tls)); then
+  # A CA, a server certificate for the names the learner is reached by, a client certificate and
+  # a token, readable by the containers' user (10001).
+  docker run --rm --user 0 --entrypoint learner -v "$certs:/out" "$HD_IMAGE" certs --out /out --hosts learner,localhost,127.0.0.1 >/dev/null ||
+    fail "learner certs in the image"
+  head -c 32 /dev/urandom | base64 >"$certs/token"
+  chown -R 10001:10001 "$certs" 2>/dev/null || chmod -R a+rX "$certs"
+  pass "certificates and token made for the run (mutual TLS and token auth on)"
+fi
 
 # --- 2. up -----------------------------------------------------------------------------------------
 say "up -d --scale actor=3"
@@ -140,9 +174,20 @@ learner=$(c ps -q learner)
 pass "learner healthy (compose health check: learner health over grpc.health.v1)"
 [[ $(running_actors | wc -l) -eq 3 ]] || fail "expected 3 running actor containers"
 # Service-name DNS inside a container, as the actors use it.
-docker exec "$(first_line running_actors)" learner health --addr learner:50051 >/dev/null ||
-  fail "an actor container cannot reach learner:50051 by name"
-pass "an actor container resolves the service name and gets SERVING from learner:50051"
+health_addr=learner:50051
+((tls)) && health_addr=https://learner:50051
+docker exec "$(first_line running_actors)" learner health --addr "$health_addr" "${client[@]}" >/dev/null ||
+  fail "an actor container cannot reach $health_addr by name"
+pass "an actor container resolves the service name and gets SERVING from $health_addr"
+if ((tls)); then
+  ca=(--tls-ca /etc/hybrid-drive-tls/ca.pem)
+  refused() { ! docker exec "$learner" learner status --json "$@" >/dev/null 2>&1; }
+  refused --addr "$addr" "${ca[@]}" "${auth[@]}" || fail "a client without a certificate was served (mutual TLS off?)"
+  refused --addr "$addr" "${client[@]}" || fail "a client without the token was served (token auth off?)"
+  refused --addr 127.0.0.1:50051 "${auth[@]}" || fail "a plaintext client was served (TLS off?)"
+  docker exec "$learner" learner status --json --addr "$addr" "${client[@]}" "${auth[@]}" >/dev/null || fail "the test's own client (certificate and token) was refused"
+  pass "the learner refuses a client without a certificate, one without the token, and plaintext"
+fi
 
 wait_for 240 "3 actors connected and streaming" is_true 'len(connected) == 3 and all(a["transitions"] > 0 for a in connected)'
 v0=$(get 's["weights_version"]')
