@@ -1,5 +1,6 @@
 //! Hazards the planner does not know: a stalled car, a walker stepping out from behind a parked
-//! car, a cut-in, a hard-braking leader, a construction closure, an oncoming overtaker (after
+//! car, a cut-in, a hard-braking leader, a construction closure, an oncoming overtaker, a car
+//! running the junction the ego crosses (after
 //! CARLA scenario_runner's `srunner/scenarios/`). One per episode at most, placed on the ego's
 //! route at a seeded distance ahead (`spawn.rs`), drawn from the episode's own hazard stream so
 //! that an episode without one is bit-identical to one with hazards off.
@@ -11,6 +12,7 @@
 pub mod config;
 pub mod kind;
 pub mod prop;
+pub mod runner;
 pub mod spawn;
 pub mod walker;
 
@@ -42,6 +44,11 @@ pub(crate) enum Script {
     /// The oncoming car pulls `width` metres to its left (into the ego's lane) when near, holds
     /// for 30 m of its travel, and returns. `phase`: 0 waiting, 1 out, 2 returning, 3 done.
     Overtake { width: f32, out_for: f32, phase: u8 },
+    /// The runner waits at rest on `approach`, starts when the ego is as many seconds from the
+    /// crossing point (`along` its `connector`) as it needs to get there accelerating to `speed`,
+    /// and takes `connector` without a reservation. `phase`: 0 waiting, 1 running, 2 across
+    /// (driving on as traffic).
+    JunctionRunner { approach: LaneId, connector: LaneId, along: f32, speed: f32, phase: u8 },
 }
 
 /// The hazard of an episode.
@@ -168,6 +175,38 @@ impl Hazard {
                         c.lateral = (c.lateral - step).max(0.0);
                         if c.lateral == 0.0 {
                             *phase = 3;
+                            c.forced_accel = None;
+                        }
+                    }
+                    _ => {}
+                }
+            }
+            Script::JunctionRunner { approach, connector, along, speed, phase } => {
+                let Some(i) = self.car else { return };
+                let c = &mut traffic.cars[i];
+                if !c.active {
+                    return;
+                }
+                // Its centre's distance to the crossing point, and the ego's time to it.
+                let to_go = if c.lane == *approach { town.map.lanes[c.lane].path.length() - c.s + *along } else { *along - c.s };
+                let ego_time = (self.s - ego_s) / ego.speed.max(1.0) + runner::LAG;
+                match *phase {
+                    0 if ego_time <= runner::time_from_rest(to_go, *speed, runner::RUNNER_ACCEL) => {
+                        *phase = 1;
+                        self.triggered = true;
+                    }
+                    1 => {
+                        // Timed to meet the ego (which slows for a turn) until it commits.
+                        let wanted =
+                            if to_go > runner::COMMIT_DISTANCE { (to_go / ego_time).clamp(runner::MIN_SPEED, *speed) } else { *speed };
+                        c.forced_accel = Some(((wanted - c.speed) / dt).clamp(-runner::RUNNER_ACCEL, runner::RUNNER_ACCEL));
+                        // Into the junction without asking, at the line: a reservation taken
+                        // earlier would hold the ego at its own line instead.
+                        if c.lane == *approach && town.map.lanes[c.lane].path.length() - c.s < c.speed * dt * 2.0 + 0.5 {
+                            c.hold = Some(*connector);
+                        }
+                        if c.lane != *approach && c.lane != *connector {
+                            *phase = 2;
                             c.forced_accel = None;
                         }
                     }

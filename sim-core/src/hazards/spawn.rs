@@ -6,6 +6,7 @@ use rand_chacha::ChaCha8Rng;
 
 use super::config::{HazardsConfig, Range};
 use super::kind::HazardKind;
+use super::runner;
 use super::walker::Walker;
 use super::{Hazard, Prop, PropKind, Script};
 use crate::collision::Obb;
@@ -34,6 +35,8 @@ fn needs(kind: HazardKind, cfg: &HazardsConfig) -> (f32, f32) {
         // The car starts 25 m before the point, slow, so that the ego reaches it near there.
         HazardKind::CutIn => (27.0, 40.0),
         HazardKind::OppositeOvertaker => (0.0, 45.0),
+        // Placed at a junction instead (`runner.rs`).
+        HazardKind::JunctionRunner => (0.0, 0.0),
     }
 }
 
@@ -64,6 +67,9 @@ fn lane_suits(town: &Town, kind: HazardKind, lane: LaneId) -> bool {
 /// range), with its lane; `None` if the route has no room.
 #[must_use]
 pub fn feasible(kind: HazardKind, cfg: &HazardsConfig, town: &Town, route: &Route) -> Option<(LaneId, Range)> {
+    if kind == HazardKind::JunctionRunner {
+        return runner::find(cfg, town, route).map(|c| (c.approach, Range::new(c.s, c.s)));
+    }
     let (before, after) = needs(kind, cfg);
     let mut best: Option<(f32, LaneId, Range)> = None;
     for (lane, a, b) in road_stretches(town, route) {
@@ -190,6 +196,32 @@ pub fn place(
             traffic.cars[i].forced_accel = Some(0.0);
             hazard.car = Some(i);
             hazard.script = Script::Overtake { width: w, out_for: 0.0, phase: 0 };
+        }
+        HazardKind::JunctionRunner => {
+            let c = runner::find(cfg, town, route)?;
+            let approach = &town.map.lanes[c.approach];
+            let start = (approach.path.length() - runner::RUNNER_APPROACH).max(5.0);
+            let i = traffic.add_driving_on_lane(town, c.approach, start, 0.0, Some(c.connector));
+            traffic.cars[i].forced_accel = Some(0.0);
+            // The runner's lane ahead of it and its connector empty: nothing to stop it there.
+            let ahead: Vec<usize> = (0..traffic.cars.len())
+                .filter(|&j| {
+                    let o = &traffic.cars[j];
+                    j != i && o.active && (o.lane == c.connector || o.lane == c.approach && o.s > start - 8.0)
+                })
+                .collect();
+            for j in ahead {
+                traffic.remove(j);
+            }
+            hazard.s = c.s;
+            hazard.car = Some(i);
+            hazard.script = Script::JunctionRunner {
+                approach: c.approach,
+                connector: c.connector,
+                along: c.along,
+                speed: draw(rng, cfg.runner_speed),
+                phase: 0,
+            };
         }
     }
     clear_around(route, traffic, &hazard);
