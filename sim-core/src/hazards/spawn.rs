@@ -21,15 +21,19 @@ pub const MIN_START_DISTANCE: f32 = 15.0;
 /// Room kept between a lane's start and a hazard, metres: a junction lets a car onto a lane only
 /// when its entry has room.
 const LANE_ENTRY_ROOM: f32 = 15.0;
+/// Road kept after an obstacle to pass, for the way back into the lane, metres.
+const RETURN_ROOM: f32 = 14.0;
 /// Room kept after a hazard before the destination, metres.
 const ROOM_AFTER: f32 = 20.0;
 
 /// How much route a kind needs: before its point (from the start of its lane stretch) and after.
 fn needs(kind: HazardKind, cfg: &HazardsConfig) -> (f32, f32) {
     match kind {
-        HazardKind::StalledCar => (0.0, 6.0),
+        // Obstacles to pass leave room on their lane to return to it before the next junction
+        // (a car out of its lane at a junction's mouth blocks the traffic that would let it in).
+        HazardKind::StalledCar => (0.0, 6.0 + RETURN_ROOM),
         HazardKind::PedestrianCrossing => (8.0, 2.0),
-        HazardKind::Construction => (0.0, cfg.closure_length.max + 2.0),
+        HazardKind::Construction => (0.0, cfg.closure_length.max + 2.0 + RETURN_ROOM),
         // The leader drives 25 m of the lane before it brakes.
         HazardKind::HardBrake => (27.0, 5.0),
         // The car starts 25 m before the point, slow, so that the ego reaches it near there.
