@@ -75,6 +75,8 @@ pub struct HazardInfo {
     pub triggered: bool,
 }
 
+/// A car stopped this close behind a closure's barrier turns off, metres (centre to barrier).
+const TURN_OFF_ROOM: f32 = 9.0;
 /// Lateral speed of a scripted lane change, m/s.
 const LANE_CHANGE_SPEED: f32 = 1.75;
 
@@ -223,6 +225,20 @@ impl Hazard {
             && let Some(first) = self.props.first()
         {
             traffic.yield_to.push(first.body);
+            // A car that has come to a stop at the barrier turns off there (it leaves and re-enters
+            // elsewhere, as at a dead end): cars that cannot change lanes would otherwise queue
+            // back through the junction behind and lock it for good.
+            let lane = route.lane_at(self.s);
+            let barrier = town.map.lanes[lane].path.project(first.body.centre).s;
+            let stopped: Vec<usize> = (0..traffic.cars.len())
+                .filter(|&i| {
+                    let c = &traffic.cars[i];
+                    c.active && !c.parked && c.lane == lane && c.speed < 0.1 && c.s < barrier && c.s > barrier - TURN_OFF_ROOM
+                })
+                .collect();
+            for i in stopped {
+                traffic.remove(i);
+            }
         }
     }
 

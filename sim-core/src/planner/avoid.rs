@@ -91,7 +91,7 @@ impl Planner for AvoidPlanner {
             return;
         }
         let full_to = sb + half_len + 1.0;
-        let Some(end) = return_before_junction(w, start, full_to, full_to + ramp) else { return };
+        let Some((start, end)) = between_junctions(w, start, full_from, full_to, full_to + ramp) else { return };
         // Round a curb the ego keeps inside its road: only a car beside it matters, with a hand's
         // width between them; round a thing it borrows the lane beside, with a margin.
         let reach = if blocking[0].curb { w.vehicle.width / 2.0 + 0.15 } else { hw + 0.3 };
@@ -187,23 +187,26 @@ const MIN_RAMP_STANDING: f32 = 4.5;
 /// Shortest return ramp, metres.
 const MIN_RETURN: f32 = 5.0;
 
-/// Where a detour from `start` held to `full_to` may end (at `end` or before): back in the lane
-/// before the stop line of a junction the ego holds no right to cross, for a car standing out of
-/// its lane at a junction's mouth blocks the traffic that would let it in. `None` if the detour
-/// would have to run through such a junction.
-fn return_before_junction(w: &WorldView<'_>, start: f32, full_to: f32, end: f32) -> Option<f32> {
-    let mut end = end;
+/// Where a detour may start and end (at `start` and `end` or within) so that the ego is in its
+/// lane at the stop line of every junction it holds no right to cross, for a car standing out of
+/// its lane at a junction's mouth blocks the traffic that would let it in: it pulls out after
+/// such a junction, or is back before it. `None` if the detour would have to run through one.
+fn between_junctions(w: &WorldView<'_>, start: f32, full_from: f32, full_to: f32, end: f32) -> Option<(f32, f32)> {
+    let (mut start, mut end) = (start, end);
     for (i, &(lane, entry)) in w.route.lanes.iter().enumerate() {
         let exit = w.route.lanes.get(i + 1).map_or(w.route.length(), |&(_, s)| s);
         if !w.town.is_connector(lane) || exit <= start || w.ego_hold == Some(lane) {
             continue;
         }
-        if entry < full_to + MIN_RETURN {
+        if exit + 0.5 <= full_from - MIN_RAMP {
+            start = start.max(exit + 0.5);
+        } else if entry >= full_to + MIN_RETURN {
+            end = end.min(entry - 0.5);
+        } else {
             return None;
         }
-        end = end.min(entry - 0.5);
     }
-    Some(end)
+    Some((start, end))
 }
 
 /// The stretches where the ego's body on the route itself would leave drivable ground (a turn
