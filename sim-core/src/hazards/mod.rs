@@ -32,8 +32,11 @@ use crate::vehicle::VehicleState;
 /// The scripted behaviour of a hazard.
 #[derive(Debug, Clone, PartialEq)]
 pub(crate) enum Script {
-    /// Nothing moves (stalled car, construction).
+    /// Nothing moves (stalled car).
     Static,
+    /// A construction closure of `lane`, its barrier at `barrier` along the lane: traffic stopped
+    /// behind it turns off.
+    Closure { lane: LaneId, barrier: f32 },
     /// The walkers start when the ego is `trigger_time` seconds from the crossing.
     Crossing { trigger_time: f32 },
     /// The leader brakes at its limit on reaching the hazard point, stands `stop_time` s, drives on.
@@ -92,7 +95,7 @@ impl Hazard {
     pub fn step(&mut self, town: &Town, route: &Route, traffic: &mut Traffic, ego: &VehicleState, ego_s: f32, dt: f32) {
         let half = traffic.params.length / 2.0;
         match &mut self.script {
-            Script::Static => {}
+            Script::Static | Script::Closure { .. } => {}
             Script::Crossing { trigger_time } => {
                 let to_go = self.s - ego_s - half;
                 if !self.triggered && to_go < ego.speed.max(1.0) * *trigger_time {
@@ -228,16 +231,16 @@ impl Hazard {
             // A car that has come to a stop at the barrier turns off there (it leaves and re-enters
             // elsewhere, as at a dead end): cars that cannot change lanes would otherwise queue
             // back through the junction behind and lock it for good.
-            let lane = route.lane_at(self.s);
-            let barrier = town.map.lanes[lane].path.project(first.body.centre).s;
-            let stopped: Vec<usize> = (0..traffic.cars.len())
-                .filter(|&i| {
-                    let c = &traffic.cars[i];
-                    c.active && !c.parked && c.lane == lane && c.speed < 0.1 && c.s < barrier && c.s > barrier - TURN_OFF_ROOM
-                })
-                .collect();
-            for i in stopped {
-                traffic.remove(i);
+            if let Script::Closure { lane, barrier } = self.script {
+                let stopped: Vec<usize> = (0..traffic.cars.len())
+                    .filter(|&i| {
+                        let c = &traffic.cars[i];
+                        c.active && !c.parked && c.lane == lane && c.speed < 0.1 && c.s < barrier && c.s > barrier - TURN_OFF_ROOM
+                    })
+                    .collect();
+                for i in stopped {
+                    traffic.remove(i);
+                }
             }
         }
     }

@@ -137,6 +137,7 @@ pub fn place(
             // line of cones along the left edge to the closure's end.
             let barrier = Obb::new(at(route, s, 0.0), Vec2::new(0.25, w / 2.0 - 0.35), heading);
             hazard.props.push(Prop { body: barrier, height: 1.0, kind: PropKind::Barrier });
+            hazard.script = Script::Closure { lane, barrier: lane_s(barrier.centre) };
             for k in 0..5 {
                 let t = k as f32 / 4.0;
                 let p = at(route, s - 4.0 + 4.0 * t, -w / 2.0 + 0.25 + t * (w - 0.5));
