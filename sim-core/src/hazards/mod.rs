@@ -161,6 +161,11 @@ impl Hazard {
                     return;
                 }
                 let step = LANE_CHANGE_SPEED * dt;
+                if c.speed < 0.5 && c.forced_accel.is_some() {
+                    // Held at a stop line (its speed imposed would keep it there for good): it
+                    // drives as traffic from then on, waiting for its reservation and moving on.
+                    c.forced_accel = None;
+                }
                 match *phase {
                     0 => {
                         let gap = (c.pos - ego.pos).dot(ego.forward());
