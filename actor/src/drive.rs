@@ -50,8 +50,8 @@ pub struct DriveArgs {
     #[arg(long)]
     pub json: bool,
     /// Give every run a hazard of this kind (stalled_car, pedestrian_crossing, cut_in,
-    /// hard_brake, construction, opposite_overtaker), with `--route random` on 120–220 m routes
-    /// of 60 s as `actor eval --suite hazards` drives them.
+    /// hard_brake, construction, opposite_overtaker, junction_runner), with `--route random` on
+    /// 120–220 m routes of 60 s as `actor eval --suite hazards` drives them.
     #[arg(long, value_name = "KIND")]
     pub hazard: Option<String>,
 }

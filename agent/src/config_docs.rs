@@ -36,7 +36,7 @@ pub const FIELD_DOCS: &[(&str, &str)] = &[
     ("env.hazards.rate", "Probability that an episode gets a hazard, 0 to 1 (default 0: none)."),
     (
         "env.hazards.kinds",
-        "The kinds drawn from (stalled_car, pedestrian_crossing, cut_in, hard_brake, construction, opposite_overtaker; default all).",
+        "The kinds drawn from (stalled_car, pedestrian_crossing, cut_in, hard_brake, construction, opposite_overtaker, junction_runner; default all).",
     ),
     ("env.hazards.distance", "Route distance from the start to the hazard, metres (default 45–75)."),
     ("env.hazards.distance.min", "Lower end of the range."),
@@ -56,6 +56,9 @@ pub const FIELD_DOCS: &[(&str, &str)] = &[
     ("env.hazards.cut_in_gap", "Bumper-to-bumper gap a cut-in leaves in front of the ego, metres (default 6–10)."),
     ("env.hazards.cut_in_gap.min", "Lower end of the range."),
     ("env.hazards.cut_in_gap.max", "Upper end of the range."),
+    ("env.hazards.runner_speed", "Speed a junction runner crosses at, m/s (default 8–11)."),
+    ("env.hazards.runner_speed.min", "Lower end of the range."),
+    ("env.hazards.runner_speed.max", "Upper end of the range."),
     ("env.traffic.vehicles", "Moving traffic cars (0 = empty roads; 20 = default; 60+ = dense on the default town)."),
     ("env.traffic.parked_cars", "Cars parked on the roads' parking shoulders (default 12)."),
     (

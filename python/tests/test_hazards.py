@@ -6,7 +6,7 @@ import gymnasium
 
 import hybrid_drive
 
-KINDS = {"stalled_car", "pedestrian_crossing", "cut_in", "hard_brake", "construction", "opposite_overtaker"}
+KINDS = {"stalled_car", "pedestrian_crossing", "cut_in", "hard_brake", "construction", "opposite_overtaker", "junction_runner"}
 LONG_ROUTES = {"route_length_min": 120.0, "route_length_max": 220.0}
 
 

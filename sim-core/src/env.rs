@@ -362,6 +362,7 @@ impl Env {
             traffic: &self.traffic,
             parked: &self.parked,
             hazard: self.hazard.as_ref(),
+            ego_hold: self.ego_hold,
         };
         self.planner.update(&world);
     }

@@ -507,7 +507,10 @@ impl Traffic {
             }
             let path = &lanes[c.lane].path;
             let p = path.project_range(o.centre, c.segment, c.segment + YIELD_LOOKAHEAD as usize);
-            if p.s > c.s && p.lateral.abs() < lanes[c.lane].width / 2.0 + o.half.length() {
+            // The distance to the lane, not the lateral offset: past the lane's end the offset is
+            // from the last segment's line, and a closure beyond the junction would hold a car
+            // (and its reservation) at the stop line for good.
+            if p.s > c.s && p.distance < lanes[c.lane].width / 2.0 + o.half.length() {
                 consider(p.s - c.s - half - o.half.length() - 1.0, 0.0);
             }
         }

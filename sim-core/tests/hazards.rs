@@ -32,13 +32,14 @@ fn avoid_config(kind: HazardKind) -> EnvConfig {
 }
 
 /// The kinds placed on random routes.
-const PLACED: [HazardKind; 6] = [
+const PLACED: [HazardKind; 7] = [
     HazardKind::StalledCar,
     HazardKind::PedestrianCrossing,
     HazardKind::CutIn,
     HazardKind::HardBrake,
     HazardKind::Construction,
     HazardKind::OppositeOvertaker,
+    HazardKind::JunctionRunner,
 ];
 
 /// How each of seeds 0..n ends: (collision, arrived).
@@ -71,8 +72,21 @@ fn every_kind_is_placed_ahead_on_the_route_never_inside_the_ego() {
                 assert!(!bodies.is_empty());
                 for b in bodies {
                     assert!(!b.intersects(&ego), "{kind:?} seed {seed}: inside the ego");
+                    if kind == HazardKind::JunctionRunner {
+                        continue; // it waits on a road into the junction: checked below
+                    }
                     let p = env.route.path.project(b.centre);
                     assert!(p.distance < 8.0 && p.s > 10.0, "{kind:?} seed {seed}: off the route ({p:?})");
+                }
+                if kind == HazardKind::JunctionRunner {
+                    // Its lane leads into a junction of the route, onto a connector that conflicts
+                    // with the route's there.
+                    let runner = &env.traffic.cars[h.car.unwrap()];
+                    let into = runner.next.unwrap();
+                    let ego_connector = env.route.lane_at(h.s);
+                    assert!(env.town.is_connector(ego_connector), "seed {seed}: the crossing point is in a junction");
+                    assert!(env.town.connectors_conflict(into, ego_connector), "seed {seed}: the runner's path crosses the route's");
+                    assert!(env.town.map.lanes[runner.lane].successors.contains(&into));
                 }
             }
         }
@@ -213,4 +227,24 @@ fn opposite_overtaker_pulls_into_the_ego_lane_and_back() {
     }
     assert!(out && back, "out {out}, back {back}");
     assert!(env.info().arrived, "the avoiding driver lets it pass: {:?}", env.info());
+}
+
+#[test]
+fn junction_runner_crosses_without_right_of_way_hits_the_blind_driver_and_is_stopped_for_when_perceived() {
+    let mut env = Env::new(Town::default_town(), config(HazardKind::JunctionRunner)).unwrap();
+    env.reset(0, Scenario::Random).unwrap();
+    let i = env.hazard.as_ref().unwrap().car.unwrap();
+    let (approach, expert) = (env.traffic.cars[i].lane, Expert::default());
+    let mut entered_while_ego_held = false;
+    while !env.is_done() {
+        env.step(expert.act(&env)).unwrap();
+        let c = &env.traffic.cars[i];
+        entered_while_ego_held |= c.lane != approach && env.ego_hold().is_some_and(|h| env.town.connectors_conflict(h, c.lane));
+    }
+    assert!(entered_while_ego_held, "it takes its connector while the ego holds a conflicting one");
+    let blind = outcomes(&config(HazardKind::JunctionRunner), &Expert::default(), 6);
+    assert!(blind.iter().filter(|o| o.0 == Some(CollisionKind::Vehicle)).count() >= 3, "{blind:?}");
+    let avoid = outcomes(&avoid_config(HazardKind::JunctionRunner), &Expert::avoiding(), 6);
+    assert!(!avoid.iter().any(|o| o.0 == Some(CollisionKind::Vehicle)), "{avoid:?}");
+    assert!(avoid.iter().filter(|o| o.1).count() >= 4, "{avoid:?}");
 }

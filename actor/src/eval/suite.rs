@@ -53,13 +53,14 @@ impl Suite {
 }
 
 /// The hazard kinds the suite drives.
-pub const SUITE_KINDS: [HazardKind; 6] = [
+pub const SUITE_KINDS: [HazardKind; 7] = [
     HazardKind::StalledCar,
     HazardKind::PedestrianCrossing,
     HazardKind::CutIn,
     HazardKind::HardBrake,
     HazardKind::Construction,
     HazardKind::OppositeOvertaker,
+    HazardKind::JunctionRunner,
 ];
 
 /// Random routes of hazard scenarios, metres: long enough for a hazard 45–75 m in and room after.
@@ -441,7 +442,7 @@ mod tests {
             let a = &report.agents[0];
             assert_eq!(a.planner, "astar", "checkpoints so far plan with A*");
             assert!(a.driving_score.is_finite() && (0.0..=1.0).contains(&a.driving_score), "{}", a.driving_score);
-            assert_eq!(a.scenarios.len(), if suite == Suite::Hazards { 6 } else { 7 });
+            assert_eq!(a.scenarios.len(), if suite == Suite::Hazards { SUITE_KINDS.len() } else { EvalRoute::ALL.len() });
         }
     }
 }

@@ -37,7 +37,7 @@ impl Range {
 pub struct HazardsConfig {
     /// Probability that an episode gets a hazard, 0 to 1 (default 0: none).
     pub rate: f32,
-    /// The kinds drawn from, uniformly (default: all six).
+    /// The kinds drawn from, uniformly (default: all seven).
     pub kinds: Vec<HazardKind>,
     /// Route distance from the start to the hazard, metres (default 45–75).
     pub distance: Range,
@@ -51,6 +51,8 @@ pub struct HazardsConfig {
     pub stop_time: Range,
     /// Bumper-to-bumper gap a cut-in leaves in front of the ego, metres (default 6–10).
     pub cut_in_gap: Range,
+    /// Speed a junction runner crosses at, m/s (default 8–11).
+    pub runner_speed: Range,
 }
 
 impl Default for HazardsConfig {
@@ -64,6 +66,7 @@ impl Default for HazardsConfig {
             closure_length: Range::new(12.0, 20.0),
             stop_time: Range::new(2.0, 4.0),
             cut_in_gap: Range::new(6.0, 10.0),
+            runner_speed: Range::new(8.0, 11.0),
         }
     }
 }
@@ -86,6 +89,7 @@ impl HazardsConfig {
         self.closure_length.validate("hazards.closure_length", 4.0)?;
         self.stop_time.validate("hazards.stop_time", 0.0)?;
         self.cut_in_gap.validate("hazards.cut_in_gap", 2.0)?;
+        self.runner_speed.validate("hazards.runner_speed", 2.0)?;
         Ok(())
     }
 

@@ -18,17 +18,20 @@ pub enum HazardKind {
     Construction,
     /// An oncoming car pulls into the ego's lane to pass.
     OppositeOvertaker,
+    /// A car crosses the junction the ego crosses, without right of way (runs the red light).
+    JunctionRunner,
 }
 
 impl HazardKind {
     /// Every kind, in the order.
-    pub const ALL: [HazardKind; 6] = [
+    pub const ALL: [HazardKind; 7] = [
         HazardKind::StalledCar,
         HazardKind::PedestrianCrossing,
         HazardKind::CutIn,
         HazardKind::HardBrake,
         HazardKind::Construction,
         HazardKind::OppositeOvertaker,
+        HazardKind::JunctionRunner,
     ];
 
     /// The kind's name in configuration and reports.
@@ -41,6 +44,7 @@ impl HazardKind {
             HazardKind::HardBrake => "hard_brake",
             HazardKind::Construction => "construction",
             HazardKind::OppositeOvertaker => "opposite_overtaker",
+            HazardKind::JunctionRunner => "junction_runner",
         }
     }
 

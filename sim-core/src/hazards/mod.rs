@@ -1,5 +1,6 @@
 //! Hazards the planner does not know: a stalled car, a walker stepping out from behind a parked
-//! car, a cut-in, a hard-braking leader, a construction closure, an oncoming overtaker (after
+//! car, a cut-in, a hard-braking leader, a construction closure, an oncoming overtaker, a car
+//! running the junction the ego crosses (after
 //! CARLA scenario_runner's `srunner/scenarios/`). One per episode at most, placed on the ego's
 //! route at a seeded distance ahead (`spawn.rs`), drawn from the episode's own hazard stream so
 //! that an episode without one is bit-identical to one with hazards off.
@@ -11,6 +12,7 @@
 pub mod config;
 pub mod kind;
 pub mod prop;
+pub mod runner;
 pub mod spawn;
 pub mod walker;
 
@@ -30,8 +32,11 @@ use crate::vehicle::VehicleState;
 /// The scripted behaviour of a hazard.
 #[derive(Debug, Clone, PartialEq)]
 pub(crate) enum Script {
-    /// Nothing moves (stalled car, construction).
+    /// Nothing moves (stalled car).
     Static,
+    /// A construction closure of `lane`, its barrier at `barrier` along the lane: traffic stopped
+    /// behind it turns off.
+    Closure { lane: LaneId, barrier: f32 },
     /// The walkers start when the ego is `trigger_time` seconds from the crossing.
     Crossing { trigger_time: f32 },
     /// The leader brakes at its limit on reaching the hazard point, stands `stop_time` s, drives on.
@@ -42,6 +47,11 @@ pub(crate) enum Script {
     /// The oncoming car pulls `width` metres to its left (into the ego's lane) when near, holds
     /// for 30 m of its travel, and returns. `phase`: 0 waiting, 1 out, 2 returning, 3 done.
     Overtake { width: f32, out_for: f32, phase: u8 },
+    /// The runner waits at rest on `approach`, starts when the ego is as many seconds from the
+    /// crossing point (`along` its `connector`) as it needs to get there accelerating to `speed`,
+    /// and takes `connector` without a reservation. `phase`: 0 waiting, 1 running, 2 across
+    /// (driving on as traffic).
+    JunctionRunner { approach: LaneId, connector: LaneId, along: f32, speed: f32, phase: u8 },
 }
 
 /// The hazard of an episode.
@@ -68,6 +78,8 @@ pub struct HazardInfo {
     pub triggered: bool,
 }
 
+/// A car stopped this close behind a closure's barrier turns off, metres (centre to barrier).
+const TURN_OFF_ROOM: f32 = 9.0;
 /// Lateral speed of a scripted lane change, m/s.
 const LANE_CHANGE_SPEED: f32 = 1.75;
 
@@ -83,7 +95,7 @@ impl Hazard {
     pub fn step(&mut self, town: &Town, route: &Route, traffic: &mut Traffic, ego: &VehicleState, ego_s: f32, dt: f32) {
         let half = traffic.params.length / 2.0;
         match &mut self.script {
-            Script::Static => {}
+            Script::Static | Script::Closure { .. } => {}
             Script::Crossing { trigger_time } => {
                 let to_go = self.s - ego_s - half;
                 if !self.triggered && to_go < ego.speed.max(1.0) * *trigger_time {
@@ -149,6 +161,11 @@ impl Hazard {
                     return;
                 }
                 let step = LANE_CHANGE_SPEED * dt;
+                if c.speed < 0.5 && c.forced_accel.is_some() {
+                    // Held at a stop line (its speed imposed would keep it there for good): it
+                    // drives as traffic from then on, waiting for its reservation and moving on.
+                    c.forced_accel = None;
+                }
                 match *phase {
                     0 => {
                         let gap = (c.pos - ego.pos).dot(ego.forward());
@@ -174,6 +191,38 @@ impl Hazard {
                     _ => {}
                 }
             }
+            Script::JunctionRunner { approach, connector, along, speed, phase } => {
+                let Some(i) = self.car else { return };
+                let c = &mut traffic.cars[i];
+                if !c.active {
+                    return;
+                }
+                // Its centre's distance to the crossing point, and the ego's time to it.
+                let to_go = if c.lane == *approach { town.map.lanes[c.lane].path.length() - c.s + *along } else { *along - c.s };
+                let ego_time = (self.s - ego_s) / ego.speed.max(1.0) + runner::LAG;
+                match *phase {
+                    0 if ego_time <= runner::time_from_rest(to_go, *speed, runner::RUNNER_ACCEL) => {
+                        *phase = 1;
+                        self.triggered = true;
+                    }
+                    1 => {
+                        // Timed to meet the ego (which slows for a turn) until it commits.
+                        let wanted =
+                            if to_go > runner::COMMIT_DISTANCE { (to_go / ego_time).clamp(runner::MIN_SPEED, *speed) } else { *speed };
+                        c.forced_accel = Some(((wanted - c.speed) / dt).clamp(-runner::RUNNER_ACCEL, runner::RUNNER_ACCEL));
+                        // Into the junction without asking, at the line: a reservation taken
+                        // earlier would hold the ego at its own line instead.
+                        if c.lane == *approach && town.map.lanes[c.lane].path.length() - c.s < c.speed * dt * 2.0 + 0.5 {
+                            c.hold = Some(*connector);
+                        }
+                        if c.lane != *approach && c.lane != *connector {
+                            *phase = 2;
+                            c.forced_accel = None;
+                        }
+                    }
+                    _ => {}
+                }
+            }
         }
         for w in &mut self.walkers {
             w.step(dt);
@@ -184,6 +233,20 @@ impl Hazard {
             && let Some(first) = self.props.first()
         {
             traffic.yield_to.push(first.body);
+            // A car that has come to a stop at the barrier turns off there (it leaves and re-enters
+            // elsewhere, as at a dead end): cars that cannot change lanes would otherwise queue
+            // back through the junction behind and lock it for good.
+            if let Script::Closure { lane, barrier } = self.script {
+                let stopped: Vec<usize> = (0..traffic.cars.len())
+                    .filter(|&i| {
+                        let c = &traffic.cars[i];
+                        c.active && !c.parked && c.lane == lane && c.speed < 0.1 && c.s < barrier && c.s > barrier - TURN_OFF_ROOM
+                    })
+                    .collect();
+                for i in stopped {
+                    traffic.remove(i);
+                }
+            }
         }
     }
 

@@ -6,6 +6,7 @@ use rand_chacha::ChaCha8Rng;
 
 use super::config::{HazardsConfig, Range};
 use super::kind::HazardKind;
+use super::runner;
 use super::walker::Walker;
 use super::{Hazard, Prop, PropKind, Script};
 use crate::collision::Obb;
@@ -20,20 +21,26 @@ pub const MIN_START_DISTANCE: f32 = 15.0;
 /// Room kept between a lane's start and a hazard, metres: a junction lets a car onto a lane only
 /// when its entry has room.
 const LANE_ENTRY_ROOM: f32 = 15.0;
+/// Road kept after an obstacle to pass, for the way back into the lane, metres.
+const RETURN_ROOM: f32 = 14.0;
 /// Room kept after a hazard before the destination, metres.
 const ROOM_AFTER: f32 = 20.0;
 
 /// How much route a kind needs: before its point (from the start of its lane stretch) and after.
 fn needs(kind: HazardKind, cfg: &HazardsConfig) -> (f32, f32) {
     match kind {
-        HazardKind::StalledCar => (0.0, 6.0),
+        // Obstacles to pass leave room on their lane to return to it before the next junction
+        // (a car out of its lane at a junction's mouth blocks the traffic that would let it in).
+        HazardKind::StalledCar => (0.0, 6.0 + RETURN_ROOM),
         HazardKind::PedestrianCrossing => (8.0, 2.0),
-        HazardKind::Construction => (0.0, cfg.closure_length.max + 2.0),
+        HazardKind::Construction => (0.0, cfg.closure_length.max + 2.0 + RETURN_ROOM),
         // The leader drives 25 m of the lane before it brakes.
         HazardKind::HardBrake => (27.0, 5.0),
         // The car starts 25 m before the point, slow, so that the ego reaches it near there.
         HazardKind::CutIn => (27.0, 40.0),
         HazardKind::OppositeOvertaker => (0.0, 45.0),
+        // Placed at a junction instead (`runner.rs`).
+        HazardKind::JunctionRunner => (0.0, 0.0),
     }
 }
 
@@ -64,6 +71,9 @@ fn lane_suits(town: &Town, kind: HazardKind, lane: LaneId) -> bool {
 /// range), with its lane; `None` if the route has no room.
 #[must_use]
 pub fn feasible(kind: HazardKind, cfg: &HazardsConfig, town: &Town, route: &Route) -> Option<(LaneId, Range)> {
+    if kind == HazardKind::JunctionRunner {
+        return runner::find(cfg, town, route).map(|c| (c.approach, Range::new(c.s, c.s)));
+    }
     let (before, after) = needs(kind, cfg);
     let mut best: Option<(f32, LaneId, Range)> = None;
     for (lane, a, b) in road_stretches(town, route) {
@@ -127,6 +137,7 @@ pub fn place(
             // line of cones along the left edge to the closure's end.
             let barrier = Obb::new(at(route, s, 0.0), Vec2::new(0.25, w / 2.0 - 0.35), heading);
             hazard.props.push(Prop { body: barrier, height: 1.0, kind: PropKind::Barrier });
+            hazard.script = Script::Closure { lane, barrier: lane_s(barrier.centre) };
             for k in 0..5 {
                 let t = k as f32 / 4.0;
                 let p = at(route, s - 4.0 + 4.0 * t, -w / 2.0 + 0.25 + t * (w - 0.5));
@@ -190,6 +201,32 @@ pub fn place(
             traffic.cars[i].forced_accel = Some(0.0);
             hazard.car = Some(i);
             hazard.script = Script::Overtake { width: w, out_for: 0.0, phase: 0 };
+        }
+        HazardKind::JunctionRunner => {
+            let c = runner::find(cfg, town, route)?;
+            let approach = &town.map.lanes[c.approach];
+            let start = (approach.path.length() - runner::RUNNER_APPROACH).max(5.0);
+            let i = traffic.add_driving_on_lane(town, c.approach, start, 0.0, Some(c.connector));
+            traffic.cars[i].forced_accel = Some(0.0);
+            // The runner's lane ahead of it and its connector empty: nothing to stop it there.
+            let ahead: Vec<usize> = (0..traffic.cars.len())
+                .filter(|&j| {
+                    let o = &traffic.cars[j];
+                    j != i && o.active && (o.lane == c.connector || o.lane == c.approach && o.s > start - 8.0)
+                })
+                .collect();
+            for j in ahead {
+                traffic.remove(j);
+            }
+            hazard.s = c.s;
+            hazard.car = Some(i);
+            hazard.script = Script::JunctionRunner {
+                approach: c.approach,
+                connector: c.connector,
+                along: c.along,
+                speed: draw(rng, cfg.runner_speed),
+                phase: 0,
+            };
         }
     }
     clear_around(route, traffic, &hazard);

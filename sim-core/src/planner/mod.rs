@@ -31,6 +31,8 @@ pub struct WorldView<'a> {
     /// Cars parked on shoulders.
     pub parked: &'a [Obb],
     pub hazard: Option<&'a Hazard>,
+    /// The junction connector the ego holds the right to cross, if any.
+    pub ego_hold: Option<crate::map::LaneId>,
 }
 
 /// A lateral offset from the route: 0 before `start`, rising linearly to `offset` at `full_from`,
