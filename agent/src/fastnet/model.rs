@@ -117,12 +117,6 @@ impl FastNet {
         }
     }
 
-    /// Whether this network computes its wide convolutions in bf16.
-    #[must_use]
-    pub fn is_bf16(&self) -> bool {
-        self.bf16
-    }
-
     /// Whether layer `l` runs on the bf16 kernel.
     fn layer_bf16(&self, l: usize) -> bool {
         self.bf16 && conv_bf16::fits(&self.geoms[l])
@@ -149,6 +143,9 @@ impl FastNet {
                     part.pre[l] = vec![0.0; images * g.out_len()];
                     part.dk[l] = vec![0.0; 9 * g.cin * g.cout];
                     part.db[l] = vec![0.0; g.cout];
+                    if self.bf16 && conv_bf16::fits(g) {
+                        part.input_bf16[l] = vec![0; images * g.padded_in()];
+                    }
                 }
                 part.patches = vec![0.0; self.geoms.iter().map(|g| g.patches_len().max(g.transposed().patches_len())).max().unwrap_or(0)];
                 part
@@ -331,7 +328,6 @@ impl Part {
                 let (inputs, next_inputs) = self.input.split_at_mut(l + 1);
                 let input = &inputs[l][img * pi..(img + 1) * pi];
                 let ops = if kernels.bf16[l] {
-                    self.input_bf16[l].resize(self.images * pi, 0);
                     let input_bf16 = &mut self.input_bf16[l][img * pi..(img + 1) * pi];
                     bf16::convert(input, input_bf16);
                     Operands::Bf16 { input: input_bf16, kernel: &kernels.packed[l] }
