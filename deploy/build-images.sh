@@ -26,8 +26,8 @@ done
 
 target=${CARGO_TARGET_DIR:-$repo/target}
 if ((cargo_build)); then
-  echo "build-images: cargo build --release -p learner -p actor"
-  cargo build --release --locked -p learner -p actor
+  echo "build-images: cargo build --release -p learner-cli -p actor"
+  cargo build --release --locked -p learner-cli -p actor
 fi
 for bin in learner actor; do
   [[ -x $target/release/$bin ]] || { echo "build-images: $target/release/$bin is missing (run without --no-cargo)" >&2; exit 1; }

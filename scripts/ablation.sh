@@ -91,7 +91,7 @@ run() {
     "$@"
 }
 if [[ "$build" == 1 ]]; then
-    run cargo build --release --locked -p actor -p learner
+    run cargo build --release --locked -p actor -p learner-cli
 fi
 mkdir -p "$runs_dir"
 

@@ -14,7 +14,7 @@ if ! command -v valgrind >/dev/null; then
 fi
 cargo build --release --locked --quiet -p sim-core --example icount_sim
 # Without the learner's default features: the harness needs none of them (no candle to build).
-cargo build --release --locked --quiet -p learner --no-default-features --example icount_learner
+cargo build --release --locked --quiet -p learner --example icount_learner
 target_dir="${CARGO_TARGET_DIR:-$PWD/target}"
 exec python3 scripts/bench_check.py --baseline benches/icount-baseline.json "$@" \
   "$target_dir/release/examples/icount_sim" "$target_dir/release/examples/icount_learner"

@@ -12,7 +12,7 @@ shift || true
 if [ $# -gt 0 ]; then inputs=("$@"); else inputs=(84x84x1 48x48x1); fi
 python=${PYTHON:-python3}
 "$python" -c 'import torch' 2>/dev/null || { echo "bench-vs-torch: $python cannot import torch (set PYTHON to one that can)" >&2; exit 2; }
-cargo build --release -q -p learner
+cargo build --release -q -p learner-cli
 echo "cpu: $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2-) | flags: $(grep -o -w -E 'amx_bf16|amx_tile|avx512_bf16|avx512f' /proc/cpuinfo | sort -u | tr '\n' ' ')" >&2
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT

@@ -135,7 +135,7 @@ learner="$bin/learner"
 results="$out_dir/results"
 if [[ "$build" == 1 && "$report_only" == 0 ]]; then
     echo "+ cargo build --release --locked -p actor -p learner" >&2
-    cargo build --release --locked -p actor -p learner
+    cargo build --release --locked -p actor -p learner-cli
 fi
 mkdir -p "$runs_dir" "$results" "$out_dir/figures"
 

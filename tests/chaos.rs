@@ -174,7 +174,7 @@ fn spawn_learner(dir: &Path, resume: bool) -> Child {
 fn spawn_actor(dir: &Path, addr: &str, k: usize) -> Child {
     let name = format!("chaos-{k}");
     Command::new(env!("CARGO_BIN_EXE_actor"))
-        .args(["--learner", addr, "--envs", "2", "--id", &name, "--batch-steps", "16", "--seed", &k.to_string()])
+        .args(["--learner", addr, "--envs", "2", "--name", &name, "--batch-steps", "16", "--seed", &k.to_string()])
         .arg("--ack-log")
         .arg(dir.join(format!("acks-{k}.jsonl")))
         .env("RUST_LOG", "info")
@@ -628,8 +628,8 @@ fn restarted_exploration(w: &World) -> anyhow::Result<f64> {
 }
 
 fn audit(dir: &Path) -> anyhow::Result<(u64, u64, u64)> {
-    let (entries, first) = learner::wal::inventory(&dir.join("run"), frame_bytes())?;
-    let by_position: BTreeMap<u64, &learner::wal::Entry> = entries.iter().map(|e| (e.position, e)).collect();
+    let (entries, first) = learner::storage::replay_log::inventory(&dir.join("run"), frame_bytes())?;
+    let by_position: BTreeMap<u64, &learner::storage::replay_log::Entry> = entries.iter().map(|e| (e.position, e)).collect();
     let (mut acked, mut lost, mut evicted) = (0u64, 0u64, 0u64);
     for k in 0..ACTORS {
         let path = dir.join(format!("acks-{k}.jsonl"));

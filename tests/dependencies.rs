@@ -44,13 +44,13 @@ fn agent_has_no_runtime_network_tensor_library_or_plotting() {
 }
 
 #[test]
-fn learner_never_depends_on_the_actor() {
-    assert_never("learner", &["actor"]);
+fn the_learner_service_has_no_tools_plotting_or_candle() {
+    assert_never("learner", &["actor", "learner-cli", "plotters", "candle-core", "candle-nn", "rcgen", "clap"]);
 }
 
 #[test]
-fn the_actor_links_no_reflection_plotting_or_candle() {
-    assert_never("actor", &["tonic-reflection", "plotters", "candle-core", "candle-nn"]);
+fn the_actor_links_no_learner_tools_plotting_or_candle() {
+    assert_never("actor", &["learner-cli", "plotters", "candle-core", "candle-nn"]);
 }
 
 #[test]

@@ -205,14 +205,15 @@ fn resume_options(dir: &Path, truncate_log: bool) -> ServeOptions {
 
 /// The log's segments, oldest first.
 fn segments(dir: &Path) -> Vec<std::path::PathBuf> {
-    let mut v: Vec<_> = std::fs::read_dir(dir.join("run").join(learner::wal::DIR)).unwrap().map(|e| e.unwrap().path()).collect();
+    let mut v: Vec<_> =
+        std::fs::read_dir(dir.join("run").join(learner::storage::replay_log::DIR)).unwrap().map(|e| e.unwrap().path()).collect();
     v.sort();
     v
 }
 
 /// Records in a segment file.
 fn records_in(path: &Path) -> u64 {
-    learner::wal::format::records(&std::fs::read(path).unwrap()).0.len() as u64
+    learner::storage::replay_log::format::records(&std::fs::read(path).unwrap()).0.len() as u64
 }
 
 /// A log damaged in the middle (a segment that repeats earlier positions, as two learners writing
@@ -238,7 +239,7 @@ async fn a_log_damaged_in_the_middle_resumes_from_its_intact_part_when_asked() {
     assert_eq!(learner::service::status(&learner.shared).replay_log_first_position, 1);
     let in_log: u64 = segments(dir.path()).iter().map(|p| records_in(p)).sum();
     assert_eq!(in_log, kept, "the log keeps exactly its intact part");
-    let aside = dir.path().join("run").join(learner::wal::DAMAGED_DIR);
+    let aside = dir.path().join("run").join(learner::storage::replay_log::DAMAGED_DIR);
     assert_eq!(std::fs::read_dir(&aside).unwrap().count(), segs.len() - mid, "the damaged segments are kept aside");
     learner.stop().await.unwrap();
     // And the log reads whole from now on.

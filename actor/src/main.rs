@@ -41,9 +41,10 @@ struct Cli {
     /// Environments this actor runs (one batched inference for all).
     #[arg(long, default_value_t = 4)]
     envs: usize,
-    /// A name for this actor (it keeps its index, and so its exploration rate, across reconnects).
-    #[arg(long)]
-    id: Option<String>,
+    /// A name for this actor (it keeps its index, and so its exploration rate, across reconnects);
+    /// the learner assigns the actor's id. `--id` is the old spelling.
+    #[arg(long, alias = "id", value_name = "NAME")]
+    name: Option<String>,
     #[command(flatten)]
     auth: proto::cli::AuthArgs,
     #[command(flatten)]
@@ -113,7 +114,7 @@ fn main() -> Result<()> {
                     "nothing to do: give --learner ADDR to run as an actor, or a subcommand (train, eval, drive, predict, picture, bench); see --help"
                 );
             };
-            let name = cli.id.unwrap_or_else(|| format!("{}-{}", hostname(), std::process::id()));
+            let name = cli.name.unwrap_or_else(|| format!("{}-{}", hostname(), std::process::id()));
             let opts = run::ActorOptions {
                 learner: proto::client::Target::new(&learner, cli.tls.files(), cli.auth.insecure_plaintext)?,
                 envs: cli.envs,

@@ -11,8 +11,8 @@ use std::time::{Duration, Instant};
 use agent::config::RunConfig;
 use anyhow::{Context, Result};
 use clap::Args;
-use learner::records::{EvalRecord, EvalRouteRecord};
 use learner::serve::{ServeOptions, start};
+use learner::telemetry::records::{EvalRecord, EvalRouteRecord};
 
 use crate::eval::periodic::{evaluate_weights, route_types_mastered};
 
@@ -151,7 +151,7 @@ pub async fn run(args: &TrainArgs) -> Result<()> {
         // Its standard input is a pipe this process holds: when this process dies, even by
         // SIGKILL, the pipe closes and the actor exits (`--exit-with-stdin`).
         let child = Command::new(&exe)
-            .args(["--learner", &addr, "--envs", &args.envs.to_string(), "--id", &format!("local-{k}"), "--seed", &seed.to_string()])
+            .args(["--learner", &addr, "--envs", &args.envs.to_string(), "--name", &format!("local-{k}"), "--seed", &seed.to_string()])
             .arg("--exit-with-stdin")
             .stdin(Stdio::piped())
             .stdout(Stdio::null())
@@ -161,7 +161,7 @@ pub async fn run(args: &TrainArgs) -> Result<()> {
         children.push(child);
     }
 
-    let reporter = std::sync::Arc::new(learner::progress::Reporter::stderr());
+    let reporter = std::sync::Arc::new(learner::telemetry::progress::Reporter::stderr());
     let progress = tokio::spawn(learner::serve::progress_loop(running.shared.clone(), reporter.clone(), Duration::from_secs(2)));
 
     let evaluations = (args.eval_every > 0.0).then(|| {
@@ -234,7 +234,7 @@ async fn periodic_evaluation(
     shared: std::sync::Arc<learner::state::Shared>,
     every: Duration,
     runs: u32,
-    reporter: std::sync::Arc<learner::progress::Reporter>,
+    reporter: std::sync::Arc<learner::telemetry::progress::Reporter>,
 ) {
     /// Seeds of the periodic evaluations: apart from `actor eval`'s default 0.., the same each time.
     const SEED: u64 = 10_000;

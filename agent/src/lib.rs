@@ -4,16 +4,16 @@
 //! inputs ([`features`]) and how checkpoints are found and verified ([`checkpoint`]).
 //!
 //! No async runtime, network, plotting or tensor library: candle's version of the network
-//! ([`reference`]) is behind the `reference` feature, for tests and benchmarks.
+//! ([`candle_net`]) is behind the `candle` feature, for tests and benchmarks.
 
+#[cfg(feature = "candle")]
+pub mod candle_net;
 pub mod checkpoint;
 pub mod config;
 pub mod config_docs;
 pub mod fastnet;
 pub mod features;
 pub mod presets;
-#[cfg(feature = "reference")]
-pub mod reference;
 pub mod shape;
 pub mod weights;
 

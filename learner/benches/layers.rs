@@ -13,7 +13,7 @@ use agent::fastnet::gemm::{View, matmul};
 use agent::fastnet::pool::{self, Strided};
 use agent::fastnet::{FastNet, Params, default_threads};
 use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
-use learner::dqn::{Batch, Dqn};
+use learner::training::dqn::{Batch, Dqn};
 
 fn noise(n: usize, seed: u32) -> Vec<f32> {
     (0..n as u32).map(|i| ((i.wrapping_mul(2_654_435_761) ^ seed) % 1000) as f32 / 500.0 - 1.0).collect()

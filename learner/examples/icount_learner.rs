@@ -22,12 +22,12 @@ use std::time::Instant;
 use agent::checkpoint::Counters;
 use agent::config::RunConfig;
 use agent::fastnet::{Inference, Params};
-use learner::dqn::{Batch, Dqn};
-use learner::metrics_log::MetricsLog;
-use learner::replay::{Replay, ReplayConfig, StepRecord};
 use learner::state::{ActorRecord, EpisodeOutcome, PublishedWeights, Shared, TrainStats};
-use learner::versions::VersionLease;
-use learner::wal::format;
+use learner::storage::replay::{Replay, ReplayConfig, StepRecord};
+use learner::storage::replay_log::format;
+use learner::storage::versions::VersionLease;
+use learner::telemetry::metrics_log::MetricsLog;
+use learner::training::dqn::{Batch, Dqn};
 use prost::Message;
 use sim_core::env::PATH_FEATURES;
 

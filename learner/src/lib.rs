@@ -1,30 +1,18 @@
 //! The learner: the training service. It holds the replay buffer, trains the DQN (on the agent's
 //! `fastnet`), writes checkpoints, publishes weights to actors and reports status and metrics.
-//! What the agent is (network, weights files, configuration, inputs) lives in the `agent` crate.
+//! What the agent is (network, weights files, configuration, inputs) lives in the `agent` crate;
+//! the `learner` program and its offline tools (plots, benchmarks, `status`, certificates) live in
+//! `learner/cli/`, so that this library has no plotting or benchmark code.
+//!
+//! - [`service`]: the gRPC service actors talk to, what it accepts, authentication, TLS.
+//! - [`storage`]: the replay buffer, the replay log, checkpoints, the run directory's files.
+//! - [`training`]: the DQN and the training loop.
+//! - [`telemetry`]: Prometheus, TensorBoard events, metrics files, the progress line.
+//! - [`serve`]: a learner assembled from the above and supervised; [`state`]: what they share.
 
-pub mod auth;
-pub mod bench;
-pub mod bounds;
-pub mod certs;
-pub mod checkpoint;
-pub mod dqn;
-pub mod metrics_log;
-#[cfg(feature = "plot")]
-pub mod plot;
-pub mod progress;
-pub mod prometheus;
-pub mod records;
-pub mod replay;
-pub mod run_lock;
-pub mod run_map;
 pub mod serve;
 pub mod service;
 pub mod state;
-pub mod status;
-pub mod sum_tree;
-pub mod tfevents;
-pub mod tls;
-pub mod train;
-pub mod validate;
-pub mod versions;
-pub mod wal;
+pub mod storage;
+pub mod telemetry;
+pub mod training;

@@ -6,11 +6,11 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Condvar, Mutex, RwLock};
 use std::time::{Duration, Instant};
 
-use crate::metrics_log::MetricsLog;
-use crate::records::TrainRecord;
-use crate::replay::Replay;
-use crate::versions::VersionLease;
-use crate::wal::ReplayLog;
+use crate::storage::replay::Replay;
+use crate::storage::replay_log::ReplayLog;
+use crate::storage::versions::VersionLease;
+use crate::telemetry::metrics_log::MetricsLog;
+use crate::telemetry::records::TrainRecord;
 use agent::NetShape;
 use agent::checkpoint::Counters;
 use agent::config::RunConfig;
@@ -115,7 +115,7 @@ pub struct Shared {
     pub cfg: RunConfig,
     /// The map file the run drives (`[env] map`), sent to actors at Register; none for the
     /// embedded towns.
-    pub map: Option<crate::run_map::RunMap>,
+    pub map: Option<crate::storage::run_map::RunMap>,
     pub run_id: String,
     pub started: Instant,
     pub shape: NetShape,

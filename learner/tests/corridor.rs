@@ -12,9 +12,9 @@
 use agent::NetShape;
 use agent::config::{AgentConfig, RunConfig};
 use agent::fastnet::Precision;
-use learner::dqn::Dqn;
-use learner::replay::{Replay, ReplayConfig, StepRecord};
-use learner::train::make_batch;
+use learner::storage::replay::{Replay, ReplayConfig, StepRecord};
+use learner::training::dqn::Dqn;
+use learner::training::train::make_batch;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 

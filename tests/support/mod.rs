@@ -54,10 +54,10 @@ impl Drop for Process {
     }
 }
 
-/// `actor --learner ADDR --envs 2 --id NAME` plus `extra`, RUST_LOG=info.
+/// `actor --learner ADDR --envs 2 --name NAME` plus `extra`, RUST_LOG=info.
 pub fn actor_command(addr: &str, name: &str, extra: &[&str]) -> Command {
     let mut c = Command::new(env!("CARGO_BIN_EXE_actor"));
-    c.args(["--learner", addr, "--envs", "2", "--id", name]).args(extra).env("RUST_LOG", "info");
+    c.args(["--learner", addr, "--envs", "2", "--name", name]).args(extra).env("RUST_LOG", "info");
     c
 }
 

@@ -2,7 +2,7 @@
 //! NHWC images (no im2col for wide layers, no col2im), bias, ReLU and pooling fused in one pass,
 //! hand-written backward passes, buffers reused across steps, and the batch split across threads.
 //! Training and the actors' inference use it; candle's network (`crate::reference`, behind the
-//! `reference` feature) is what it is tested against.
+//! `candle` feature) is what it is tested against.
 //!
 //! - [`gemm`]: the bounds-checked safe wrapper around the `gemm` crate (`unsafe`, with `amx`).
 //! - [`amx`]: AMX detection and the bf16 tile kernel behind a bounds-checked safe interface.

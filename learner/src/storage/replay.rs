@@ -1,0 +1,644 @@
+//! Experience replay. Frames are stored once, in a ring, and transitions refer to them by id: a
+//! step's observation is the `next` of one transition and the `obs` of the following one.
+//! Transitions are formed per (actor, environment) stream, with n-step returns when configured;
+//! eviction is FIFO, bounded both in transitions and in bytes. Sampling is uniform, or
+//! proportional to priority (Schaul et al. 2016) with importance weights.
+//!
+//! Streams interleave, so transitions are not in frame order: a slow stream's transition can sit
+//! behind newer ones while its observation frame is the oldest in the ring. Each frame slot
+//! therefore remembers the transition that observes it, and when the ring overwrites a frame that
+//! transition is retired on the spot (a tombstone in the FIFO, priority 0); sampling also checks
+//! every frame id it reads against the ring's live range (the generation check). A transition is
+//! never sampled with another frame than its own.
+
+use std::collections::{HashMap, VecDeque};
+
+use agent::features::{RawScalars, raw_scalars};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use sim_core::env::PATH_FEATURES;
+
+use crate::storage::sum_tree::SumTree;
+
+/// Sizes and options of a replay buffer.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ReplayConfig {
+    /// Transitions kept.
+    pub capacity: usize,
+    /// Bytes the frames and transitions may take.
+    pub max_bytes: u64,
+    /// Bytes of one camera frame.
+    pub frame_bytes: usize,
+    pub gamma: f32,
+    pub n_step: usize,
+    pub prioritized: bool,
+    pub alpha: f32,
+    pub beta: f32,
+    pub seed: u64,
+}
+
+/// One environment step as it arrives from an actor (the domain form of the wire `Step`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct StepRecord<'a> {
+    pub env: u32,
+    pub episode: u64,
+    pub t: u32,
+    pub image: &'a [u8],
+    pub speed: f32,
+    pub d: f32,
+    /// The planner's path features (zeros when the actor sent none).
+    pub path: [f32; PATH_FEATURES],
+    pub action: u32,
+    pub reward: f32,
+    pub terminated: bool,
+    pub truncated: bool,
+}
+
+/// A transition between two stored frames.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Transition {
+    /// Retired because its observation frame was overwritten (a tombstone until it reaches the
+    /// front of the FIFO).
+    dead: bool,
+    obs: u64,
+    next: u64,
+    action: u32,
+    /// Discounted sum of the n rewards.
+    reward: f32,
+    /// γ^k for a bootstrapped transition of k steps, 0 for a terminal one.
+    discount: f32,
+}
+
+/// Where a stream (one environment of one actor) stands.
+#[derive(Debug, Clone, Default)]
+struct Stream {
+    episode: u64,
+    t: u32,
+    /// Frame of the latest observation, if the episode is running.
+    last_frame: Option<u64>,
+    /// Steps not yet turned into transitions: (observation frame, action, reward).
+    pending: VecDeque<(u64, u32, f32)>,
+}
+
+/// Transitions sampled for an update.
+#[derive(Debug, Clone, Default)]
+pub struct Sample {
+    /// Positions in the buffer, for priority updates.
+    pub slots: Vec<usize>,
+    /// Frames, concatenated, `frame_bytes` each.
+    pub images: Vec<u8>,
+    pub next_images: Vec<u8>,
+    /// The raw scalars of each observation.
+    pub scalars: Vec<RawScalars>,
+    pub next_scalars: Vec<RawScalars>,
+    pub actions: Vec<u32>,
+    pub rewards: Vec<f32>,
+    pub discounts: Vec<f32>,
+    /// Importance-sampling weights (1 for uniform replay).
+    pub weights: Vec<f32>,
+}
+
+/// The replay buffer.
+#[derive(Debug)]
+pub struct Replay {
+    cfg: ReplayConfig,
+    /// Frame ring: `frame_slots` frames; frame id `i` lives in slot `i % frame_slots`.
+    frames: Vec<u8>,
+    frame_scalars: Vec<RawScalars>,
+    /// Per frame slot: 1 + the id of the transition whose observation it is, or 0.
+    observed_by: Vec<u64>,
+    frame_slots: usize,
+    /// Ids of the oldest and next frame.
+    first_frame: u64,
+    next_frame: u64,
+    /// Transition ring (FIFO).
+    transitions: VecDeque<Transition>,
+    /// Transition ids: the front of `transitions` has id `first_transition`.
+    first_transition: u64,
+    /// Tombstones in `transitions`.
+    dead: usize,
+    /// Transitions that left the buffer (capacity, byte cap, overwritten frames).
+    evicted: u64,
+    streams: HashMap<(String, u32), Stream>,
+    priorities: Option<SumTree>,
+    max_priority: f32,
+    rng: ChaCha8Rng,
+}
+
+/// Bytes a stored frame takes: the image and its raw scalars (counted against the byte cap).
+fn frame_cost(frame_bytes: usize) -> u64 {
+    (frame_bytes + std::mem::size_of::<RawScalars>()) as u64
+}
+
+/// Per-transition bookkeeping bytes (counted against the byte cap).
+const TRANSITION_BYTES: u64 = std::mem::size_of::<Transition>() as u64 + 8;
+
+impl Replay {
+    /// An empty buffer. Frame slots: enough for the capacity plus one per 8 transitions (episode
+    /// starts), or fewer if the byte cap says so.
+    #[must_use]
+    pub fn new(cfg: ReplayConfig) -> Self {
+        let per_frame = frame_cost(cfg.frame_bytes);
+        let by_bytes = (cfg.max_bytes.saturating_sub(cfg.capacity as u64 * TRANSITION_BYTES) / per_frame.max(1)) as usize;
+        let frame_slots = (cfg.capacity + cfg.capacity / 8 + 64).min(by_bytes).max(2);
+        let priorities = cfg.prioritized.then(|| SumTree::new(cfg.capacity));
+        let rng = ChaCha8Rng::seed_from_u64(cfg.seed);
+        Self {
+            frames: vec![0; frame_slots * cfg.frame_bytes],
+            frame_scalars: vec![RawScalars::default(); frame_slots],
+            observed_by: vec![0; frame_slots],
+            frame_slots,
+            first_frame: 0,
+            next_frame: 0,
+            transitions: VecDeque::with_capacity(cfg.capacity.min(1 << 20)),
+            first_transition: 0,
+            dead: 0,
+            evicted: 0,
+            streams: HashMap::new(),
+            priorities,
+            max_priority: 1.0,
+            rng,
+            cfg,
+        }
+    }
+
+    /// Transitions stored (and sampleable).
+    #[must_use]
+    pub fn len(&self) -> usize {
+        self.transitions.len() - self.dead
+    }
+
+    #[must_use]
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Transitions that have left the buffer since it was created: pushed out by the capacity,
+    /// or retired because the byte cap's frame ring overwrote their observation.
+    #[must_use]
+    pub fn evicted(&self) -> u64 {
+        self.evicted
+    }
+
+    /// Id of the next frame to be stored (ids count every frame ever stored).
+    #[must_use]
+    pub fn next_frame_id(&self) -> u64 {
+        self.next_frame
+    }
+
+    /// Id of the oldest frame still held; every older frame, and every transition that observed
+    /// it, is gone.
+    #[must_use]
+    pub fn first_frame_id(&self) -> u64 {
+        self.first_frame
+    }
+
+    /// Forgets where every stream stood.
+    pub fn end_all_streams(&mut self) {
+        self.streams.clear();
+    }
+
+    /// Forgets where the streams of `actor` stood (its session ended): its next steps start
+    /// afresh.
+    pub fn end_streams_of(&mut self, actor: &str) {
+        self.streams.retain(|(a, _), _| a != actor);
+    }
+
+    /// Capacity in transitions.
+    #[must_use]
+    pub fn capacity(&self) -> usize {
+        self.cfg.capacity
+    }
+
+    /// Bytes in use (frames held and transitions).
+    #[must_use]
+    pub fn bytes(&self) -> u64 {
+        let frames = (self.next_frame - self.first_frame) * frame_cost(self.cfg.frame_bytes);
+        frames + self.transitions.len() as u64 * TRANSITION_BYTES
+    }
+
+    /// Frames held.
+    #[must_use]
+    pub fn frames_held(&self) -> u64 {
+        self.next_frame - self.first_frame
+    }
+
+    /// Adds the steps of one stream of `actor`, in order, and returns the transitions formed.
+    /// Steps must already be validated (image size, finite numbers, action range).
+    pub fn add_steps(&mut self, actor: &str, steps: &[StepRecord<'_>]) -> usize {
+        let mut stored = 0;
+        for s in steps {
+            let frame = self.push_frame(s.image, raw_scalars(s.speed, s.d, s.path));
+            let key = (actor.to_owned(), s.env);
+            let mut stream = self.streams.remove(&key).unwrap_or_default();
+            let continues = s.t > 0 && stream.last_frame.is_some() && stream.episode == s.episode && stream.t + 1 == s.t;
+            if continues {
+                let prev = stream.last_frame.expect("checked above");
+                stream.pending.push_back((prev, s.action, s.reward));
+                if s.terminated || s.truncated {
+                    // Every pending step ends here: terminal ones without bootstrap.
+                    while !stream.pending.is_empty() {
+                        stored += self.emit(&mut stream, frame, s.terminated);
+                    }
+                } else if stream.pending.len() >= self.cfg.n_step {
+                    stored += self.emit(&mut stream, frame, false);
+                }
+            } else {
+                // A new episode, or a break in the stream (lost batches): start afresh here.
+                stream.pending.clear();
+            }
+            stream.episode = s.episode;
+            stream.t = s.t;
+            stream.last_frame = (!(s.terminated || s.truncated)).then_some(frame);
+            self.streams.insert(key, stream);
+        }
+        stored
+    }
+
+    /// Turns the oldest pending step of `stream` into a transition ending at frame `next`.
+    fn emit(&mut self, stream: &mut Stream, next: u64, terminal: bool) -> usize {
+        let (obs, action, _) = *stream.pending.front().expect("pending is not empty");
+        let mut reward = 0.0f32;
+        let mut g = 1.0f32;
+        for &(_, _, r) in &stream.pending {
+            reward += g * r;
+            g *= self.cfg.gamma;
+        }
+        stream.pending.pop_front();
+        if obs < self.first_frame {
+            self.evicted += 1;
+            return 0; // its frame was overwritten already
+        }
+        self.push_transition(Transition { dead: false, obs, next, action, reward, discount: if terminal { 0.0 } else { g } });
+        1
+    }
+
+    fn push_frame(&mut self, image: &[u8], scalars: RawScalars) -> u64 {
+        let id = self.next_frame;
+        let slot = (id % self.frame_slots as u64) as usize;
+        let fb = self.cfg.frame_bytes;
+        self.frames[slot * fb..(slot + 1) * fb].copy_from_slice(image);
+        self.frame_scalars[slot] = scalars;
+        // The frame that lived in this slot is gone: so is the transition that observed it,
+        // wherever it sits in the FIFO (streams interleave, so not necessarily at the front).
+        let observer = std::mem::take(&mut self.observed_by[slot]);
+        if self.next_frame - self.first_frame >= self.frame_slots as u64 {
+            let gone = self.first_frame;
+            self.first_frame += 1;
+            if let Some(tid) = observer.checked_sub(1) {
+                self.retire(tid, gone);
+            }
+        }
+        self.next_frame += 1;
+        while self.transitions.front().is_some_and(|t| t.dead || t.obs < self.first_frame) {
+            self.pop_transition();
+        }
+        id
+    }
+
+    /// Retires transition `tid` if it is still held and observes frame `frame`.
+    fn retire(&mut self, tid: u64, frame: u64) {
+        let Some(k) = tid.checked_sub(self.first_transition).map(|k| k as usize) else { return };
+        let Some(t) = self.transitions.get_mut(k) else { return };
+        if t.dead || t.obs != frame {
+            return;
+        }
+        t.dead = true;
+        self.dead += 1;
+        self.evicted += 1;
+        if let Some(tree) = self.priorities.as_mut() {
+            tree.set((tid % self.cfg.capacity as u64) as usize, 0.0);
+        }
+    }
+
+    fn push_transition(&mut self, t: Transition) {
+        if self.transitions.len() == self.cfg.capacity {
+            self.pop_transition();
+        }
+        let id = self.first_transition + self.transitions.len() as u64;
+        self.observed_by[(t.obs % self.frame_slots as u64) as usize] = id + 1;
+        self.transitions.push_back(t);
+        if let Some(tree) = self.priorities.as_mut() {
+            tree.set((id % self.cfg.capacity as u64) as usize, self.max_priority.powf(self.cfg.alpha));
+        }
+    }
+
+    fn pop_transition(&mut self) {
+        if let Some(t) = self.transitions.pop_front() {
+            if t.dead {
+                self.dead -= 1;
+            } else {
+                self.evicted += 1;
+            }
+            if let Some(tree) = self.priorities.as_mut() {
+                tree.set((self.first_transition % self.cfg.capacity as u64) as usize, 0.0);
+            }
+            self.first_transition += 1;
+        }
+    }
+
+    fn frame(&self, id: u64) -> (&[u8], RawScalars) {
+        let slot = (id % self.frame_slots as u64) as usize;
+        let fb = self.cfg.frame_bytes;
+        (&self.frames[slot * fb..(slot + 1) * fb], self.frame_scalars[slot])
+    }
+
+    /// Whether frame `id` is still in the ring (its slot has not been reused): the generation
+    /// check every sampled frame passes.
+    fn holds_frame(&self, id: u64) -> bool {
+        id >= self.first_frame && id < self.next_frame
+    }
+
+    /// Position in the FIFO of a live transition, drawn uniformly or by priority, with its
+    /// sampling probability.
+    fn draw(&mut self) -> (usize, f64) {
+        let len = self.transitions.len();
+        let live = self.len();
+        let cap = self.cfg.capacity as u64;
+        // Tombstones are few (only transitions overtaken by other streams'), so redrawing ends
+        // quickly; a scan bounds it.
+        for _ in 0..64 {
+            let (k, p) = match self.priorities.as_ref() {
+                Some(tree) => {
+                    let total = tree.total();
+                    let u = (self.rng.next_u32() as f64 / (u32::MAX as f64 + 1.0)) * total;
+                    let slot = tree.find(u);
+                    let k = (slot as u64 + cap - self.first_transition % cap) % cap;
+                    ((k as usize).min(len - 1), tree.get(slot) as f64 / total)
+                }
+                None => ((self.rng.next_u64() % len as u64) as usize, 1.0 / live as f64),
+            };
+            if !self.transitions[k].dead {
+                return (k, p);
+            }
+        }
+        let k = self.transitions.iter().position(|t| !t.dead).expect("a live transition exists");
+        (k, 1.0 / live as f64)
+    }
+
+    /// Samples `n` transitions (with replacement). `None` when the buffer is empty.
+    pub fn sample(&mut self, n: usize) -> Option<Sample> {
+        if self.is_empty() {
+            return None;
+        }
+        let len = self.len();
+        let mut out = Sample::default();
+        let mut probs = Vec::with_capacity(n);
+        for _ in 0..n {
+            let (k, p) = self.draw();
+            let t = self.transitions[k];
+            assert!(
+                self.holds_frame(t.obs) && self.holds_frame(t.next),
+                "replay: transition {k} refers to frames {}→{} outside the ring [{}, {})",
+                t.obs,
+                t.next,
+                self.first_frame,
+                self.next_frame
+            );
+            let (img, sc) = self.frame(t.obs);
+            out.images.extend_from_slice(img);
+            out.scalars.push(sc);
+            let (img, sc) = self.frame(t.next);
+            out.next_images.extend_from_slice(img);
+            out.next_scalars.push(sc);
+            out.actions.push(t.action);
+            out.rewards.push(t.reward);
+            out.discounts.push(t.discount);
+            out.slots.push(((self.first_transition + k as u64) % self.cfg.capacity as u64) as usize);
+            probs.push(p);
+        }
+        out.weights = if self.priorities.is_some() {
+            let w: Vec<f64> = probs.iter().map(|p| (len as f64 * p.max(1e-12)).powf(-f64::from(self.cfg.beta))).collect();
+            let max = w.iter().copied().fold(f64::MIN, f64::max);
+            w.iter().map(|x| (x / max) as f32).collect()
+        } else {
+            vec![1.0; n]
+        };
+        Some(out)
+    }
+
+    /// Sets the priorities of sampled slots from their |TD errors| (prioritized replay only).
+    pub fn update_priorities(&mut self, slots: &[usize], td_abs: &[f32]) {
+        let Some(tree) = self.priorities.as_mut() else { return };
+        for (&slot, &e) in slots.iter().zip(td_abs) {
+            let p = e.abs() + 1e-3;
+            self.max_priority = self.max_priority.max(p);
+            if tree.get(slot) > 0.0 {
+                tree.set(slot, p.powf(self.cfg.alpha));
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::RngExt;
+
+    fn cfg(capacity: usize) -> ReplayConfig {
+        ReplayConfig {
+            capacity,
+            max_bytes: 1 << 30,
+            frame_bytes: 4,
+            gamma: 0.5,
+            n_step: 1,
+            prioritized: false,
+            alpha: 0.6,
+            beta: 0.4,
+            seed: 1,
+        }
+    }
+
+    /// An episode of `len` steps whose frames are filled with the step index.
+    fn episode(episode: u64, len: u32, terminal: bool) -> Vec<(Vec<u8>, StepRecord<'static>)> {
+        (0..=len)
+            .map(|t| {
+                let rec = StepRecord {
+                    env: 0,
+                    episode,
+                    t,
+                    image: &[],
+                    speed: t as f32,
+                    d: 0.0,
+                    path: [0.0; PATH_FEATURES],
+                    action: t % 3,
+                    reward: t as f32,
+                    terminated: terminal && t == len,
+                    truncated: !terminal && t == len,
+                };
+                (vec![t as u8; 4], rec)
+            })
+            .collect()
+    }
+
+    fn add(r: &mut Replay, steps: &[(Vec<u8>, StepRecord<'static>)]) -> usize {
+        let recs: Vec<StepRecord<'_>> = steps.iter().map(|(img, s)| StepRecord { image: img, ..s.clone() }).collect();
+        r.add_steps("a", &recs)
+    }
+
+    #[test]
+    fn frames_are_stored_once_and_transitions_link_them() {
+        let mut r = Replay::new(cfg(100));
+        assert_eq!(add(&mut r, &episode(0, 5, true)), 5);
+        // 6 observations (t = 0..5), 5 transitions: one frame per step, not two per transition.
+        assert_eq!((r.len(), r.frames_held()), (5, 6));
+        let s = r.sample(200).unwrap();
+        for i in 0..200 {
+            // Frame bytes carry t: next = obs + 1; reward of the step that led to next.
+            assert_eq!(s.next_images[i * 4], s.images[i * 4] + 1);
+            assert_eq!(s.rewards[i], f32::from(s.next_images[i * 4]));
+            let terminal = s.next_images[i * 4] == 5;
+            assert_eq!(s.discounts[i], if terminal { 0.0 } else { 0.5 }, "terminal transitions do not bootstrap");
+        }
+    }
+
+    #[test]
+    fn truncated_episodes_bootstrap() {
+        let mut r = Replay::new(cfg(100));
+        add(&mut r, &episode(0, 3, false));
+        let s = r.sample(100).unwrap();
+        assert!(s.discounts.iter().all(|&d| d == 0.5), "{:?}", s.discounts);
+    }
+
+    #[test]
+    fn n_step_returns_sum_discounted_rewards() {
+        let mut r = Replay::new(ReplayConfig { n_step: 3, ..cfg(100) });
+        // Rewards 1..=5 arrive with t = 1..=5; episode terminal at t = 5.
+        assert_eq!(add(&mut r, &episode(0, 5, true)), 5);
+        let s = r.sample(300).unwrap();
+        for i in 0..300 {
+            let obs = s.images[i * 4];
+            let next = s.next_images[i * 4];
+            // From t = obs: rewards obs+1, obs+2, … up to 3 of them or the end.
+            let k = (next - obs) as i32;
+            let expected: f32 = (0..k).map(|j| 0.5f32.powi(j) * f32::from(obs + 1 + j as u8)).sum();
+            assert!((s.rewards[i] - expected).abs() < 1e-6, "obs {obs} next {next}: {} vs {expected}", s.rewards[i]);
+            assert!(k == 3 || next == 5, "3-step except at the end");
+            assert_eq!(s.discounts[i], if next == 5 { 0.0 } else { 0.125 });
+        }
+    }
+
+    #[test]
+    fn eviction_is_fifo_and_bounded() {
+        let mut r = Replay::new(cfg(10));
+        for e in 0..10 {
+            add(&mut r, &episode(e, 5, true));
+        }
+        assert_eq!(r.len(), 10);
+        // Byte cap: 20 frames of 1000 bytes at most.
+        let mut small = Replay::new(ReplayConfig { frame_bytes: 1000, max_bytes: 20 * 1020 + 1000 * TRANSITION_BYTES, ..cfg(1000) });
+        let img = vec![7u8; 1000];
+        for t in 0..100u32 {
+            let rec = StepRecord {
+                env: 0,
+                episode: 0,
+                t,
+                image: &img,
+                speed: 0.0,
+                d: 0.0,
+                path: [0.0; PATH_FEATURES],
+                action: 0,
+                reward: 0.0,
+                terminated: false,
+                truncated: false,
+            };
+            small.add_steps("a", &[rec]);
+        }
+        assert!(small.frames_held() <= 20, "{}", small.frames_held());
+        assert!(small.bytes() <= 20 * 1020 + 1000 * TRANSITION_BYTES);
+        assert!(small.len() <= 19 && !small.is_empty());
+    }
+
+    #[test]
+    fn a_broken_stream_forms_no_transition_across_the_gap() {
+        let mut r = Replay::new(cfg(100));
+        let steps = episode(0, 6, true);
+        // Steps 0–2, then 4–6 (3 lost): transitions 0→1, 1→2, 4→5, 5→6 only.
+        let kept: Vec<_> = steps.iter().filter(|(_, s)| s.t != 3).cloned().collect();
+        assert_eq!(add(&mut r, &kept), 4);
+        let s = r.sample(100).unwrap();
+        assert!((0..100).all(|i| s.next_images[i * 4] == s.images[i * 4] + 1));
+    }
+
+    /// Several streams interleaved at the byte cap, one of them slow: its transitions sit behind
+    /// newer ones while their frames are the oldest in the ring. No sample may pair a transition
+    /// with a frame that is not its own. Frames carry (stream, t); the transition from t observes
+    /// (s, t) and leads to (s, t + 1).
+    #[test]
+    fn interleaved_streams_at_the_byte_cap_never_sample_an_overwritten_frame() {
+        for prioritized in [false, true] {
+            // 24 frame slots of 4 bytes: the byte cap, not the capacity, binds.
+            let per_frame = frame_cost(4);
+            let cfg = ReplayConfig { frame_bytes: 4, max_bytes: 24 * per_frame + 1000 * TRANSITION_BYTES, prioritized, ..cfg(1000) };
+            let mut r = Replay::new(cfg);
+            assert_eq!(r.frame_slots, 24);
+            let mut t = [0u32; 5];
+            let mut rng = ChaCha8Rng::seed_from_u64(7);
+            let check = |r: &mut Replay| {
+                let Some(s) = r.sample(64) else { return };
+                for i in 0..64 {
+                    let (obs, next) = (&s.images[i * 4..i * 4 + 4], &s.next_images[i * 4..i * 4 + 4]);
+                    assert_eq!(obs[0], next[0], "a transition of stream {} was sampled with stream {}'s frame", next[0], obs[0]);
+                    let (t0, t1) = (u16::from_le_bytes([obs[1], obs[2]]), u16::from_le_bytes([next[1], next[2]]));
+                    assert_eq!(t0 + 1, t1, "stream {}: frames {t0} → {t1}", obs[0]);
+                }
+                if prioritized {
+                    r.update_priorities(&s.slots, &vec![0.5; 64]);
+                }
+            };
+            for round in 0..400 {
+                // Stream 0 is slow (one step in 12 rounds); the others send 1–6 steps at a time.
+                let stream = if round % 12 == 0 { 0 } else { 1 + rng.random_range(0..4usize) };
+                let n = if stream == 0 { 1 } else { rng.random_range(1..=6) };
+                let actor = format!("actor-{stream}");
+                let imgs: Vec<[u8; 4]> = (0..n)
+                    .map(|k| {
+                        let [lo, hi] = ((t[stream] + k) as u16).to_le_bytes();
+                        [stream as u8, lo, hi, 0]
+                    })
+                    .collect();
+                let recs: Vec<StepRecord<'_>> = imgs
+                    .iter()
+                    .enumerate()
+                    .map(|(k, img)| StepRecord {
+                        env: 0,
+                        episode: 0,
+                        t: t[stream] + k as u32,
+                        image: img,
+                        speed: 0.0,
+                        d: 0.0,
+                        path: [0.0; PATH_FEATURES],
+                        action: 0,
+                        reward: 0.0,
+                        terminated: false,
+                        truncated: false,
+                    })
+                    .collect();
+                r.add_steps(&actor, &recs);
+                t[stream] += n;
+                assert!(r.bytes() <= 24 * per_frame + 1000 * TRANSITION_BYTES);
+                check(&mut r);
+            }
+            // Stream 0's transitions were overtaken and retired, and counted as evicted.
+            assert!(r.evicted() > 0);
+            assert!(r.len() <= 23, "{} live transitions over 24 frames", r.len());
+        }
+    }
+
+    #[test]
+    fn prioritized_sampling_prefers_high_priorities_and_weights_correct_for_it() {
+        let mut r = Replay::new(ReplayConfig { prioritized: true, alpha: 1.0, beta: 1.0, ..cfg(8) });
+        add(&mut r, &episode(0, 4, true));
+        let s = r.sample(4).unwrap();
+        // Make transition of slot s.slots[0] 100× likelier than the others.
+        let all: Vec<usize> = (0..4).collect();
+        r.update_priorities(&all, &[0.001; 4]);
+        r.update_priorities(&[s.slots[0]], &[1.0]);
+        let s2 = r.sample(1000).unwrap();
+        let hits = s2.slots.iter().filter(|&&x| x == s.slots[0]).count();
+        assert!(hits > 900, "{hits} of 1000");
+        // The favoured transition has the smallest importance weight.
+        let w_fav = s2.weights[s2.slots.iter().position(|&x| x == s.slots[0]).unwrap()];
+        assert!(s2.weights.iter().all(|&w| w >= w_fav - 1e-6));
+    }
+}
