@@ -32,7 +32,8 @@ struct Field {
 fn config_field_descriptions_are_generated_from_the_doc_comments() {
     let agent = Path::new(env!("CARGO_MANIFEST_DIR"));
     let mut structs = BTreeMap::new();
-    for dir in [agent.join("src"), agent.join("../sim-core/src")] {
+    let workspace = agent.parent().expect("agent/ is in the workspace");
+    for dir in [workspace.join("agent/src"), workspace.join("sim-core/src")] {
         collect(&dir, &mut structs);
     }
     let mut entries = Vec::new();
