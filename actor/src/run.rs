@@ -18,12 +18,13 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use agent::NetShape;
+use agent::backoff::Backoff;
 use agent::config::{AgentConfig, RunConfig};
 use anyhow::{Context, Result};
 // `connect_to`: plaintext or TLS, as `opts.learner` says (and never a token in clear off loopback).
 use proto::client::{ACTOR_ID_HEADER, Client, connect_to as connect};
 use proto::v1 as pb;
-use rand::{RngExt, SeedableRng};
+use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use sim_core::config::EnvConfig;
 
@@ -64,7 +65,7 @@ async fn register(
     envs: usize,
     rng: &mut ChaCha8Rng,
 ) -> Option<(Client, pb::RegisterResponse)> {
-    let mut delay = 0.5f64;
+    let mut backoff = retry_backoff();
     // Said at WARN at the first failure and then once a minute, with the attempts in between.
     let (mut warned, mut failures) = (None::<Instant>, 0u32);
     loop {
@@ -83,7 +84,7 @@ async fn register(
         match attempt.await {
             Ok(ok) => return Some(ok),
             Err(err) => {
-                let wait = delay * rng.random_range(0.75..1.25);
+                let wait = backoff.next_wait_jittered(rng).as_secs_f64();
                 failures += 1;
                 let error = format!("{err:#}");
                 if warned.is_none_or(|t| t.elapsed() >= Duration::from_secs(60)) {
@@ -93,7 +94,6 @@ async fn register(
                     tracing::debug!(learner = %opts.learner, %error, retry_in_secs = format!("{wait:.1}"), "learner unreachable");
                 }
                 wait_to_retry(link, Duration::from_secs_f64(wait)).await;
-                delay = (delay * 2.0).min(30.0);
             }
         }
     }
@@ -275,26 +275,10 @@ impl AckLog {
     }
 }
 
-/// Waits between failed streams: 0.5 s doubling to 30 s, ±25 % jitter; back to the start once a
-/// batch is acknowledged.
-#[derive(Debug)]
-struct Backoff {
-    next: f64,
-}
-
-impl Backoff {
-    const FIRST: f64 = 0.5;
-    const MAX: f64 = 30.0;
-
-    fn wait(&mut self, rng: &mut ChaCha8Rng) -> Duration {
-        let wait = self.next * rng.random_range(0.75..1.25);
-        self.next = (self.next * 2.0).min(Self::MAX);
-        Duration::from_secs_f64(wait)
-    }
-
-    fn reset(&mut self) {
-        self.next = Self::FIRST;
-    }
+/// Waits between failed registrations and between failed streams: 0.5 s doubling to 30 s, used
+/// with ±25 % jitter; a stream's is back to the start once a batch is acknowledged.
+fn retry_backoff() -> Backoff {
+    Backoff::new(Duration::from_millis(500), Duration::from_secs(30))
 }
 
 /// How a stream of batches ended.
@@ -321,7 +305,7 @@ async fn send_loop(
 ) {
     let mut seq = 0u64;
     let mut limits = Limits::from_register(&reg);
-    let mut backoff = Backoff { next: Backoff::FIRST };
+    let mut backoff = retry_backoff();
     loop {
         let (tx, rx) = tokio::sync::mpsc::channel::<pb::ExperienceBatch>(4);
         let mut req = tonic::Request::new(tokio_stream::wrappers::ReceiverStream::new(rx));
@@ -340,7 +324,7 @@ async fn send_loop(
             StreamEnd::Done => return,
             StreamEnd::Reregister => {}
             StreamEnd::Failed => {
-                let wait = backoff.wait(rng);
+                let wait = backoff.next_wait_jittered(rng);
                 tracing::info!(retry_in_secs = format!("{:.1}", wait.as_secs_f64()), "reconnecting after a wait");
                 wait_to_retry(link, wait).await;
             }

@@ -26,12 +26,16 @@ use crate::shape::NetShape;
 #[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct RunConfig {
-    /// The named preset the file starts from (`paper`, `end-to-end`); the file's other values
-    /// override it. Default: none, the built-in defaults.
+    /// A named preset the file starts from (`paper`, `end-to-end`, `hybrid-tuned`,
+    /// `end-to-end-tuned`); the file's other values override it, table by table (default: none,
+    /// the built-in defaults).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub preset: Option<String>,
+    /// The simulated world: the environment every actor runs.
     pub env: EnvConfig,
+    /// The DQN agent: network sizes, learning, replay, exploration.
     pub agent: AgentConfig,
+    /// The learner service (`learner serve`; `actor train` sets listen and run_dir itself).
     pub service: ServiceConfig,
 }
 
@@ -75,8 +79,9 @@ pub struct AgentConfig {
     /// Extension switch: prioritized replay, sampling by TD error (Schaul 2016) (default false:
     /// uniform, the paper's).
     pub prioritized_replay: bool,
-    /// Prioritization exponent α (default 0.6) and importance-sampling exponent β (default 0.4).
+    /// Prioritization exponent α of prioritized replay (default 0.6).
     pub priority_alpha: f32,
+    /// Importance-sampling exponent β of prioritized replay (default 0.4).
     pub priority_beta: f32,
     /// Extension switch: n-step returns, 1..=32 (default 1, the paper's one-step targets).
     pub n_step: usize,
@@ -84,16 +89,21 @@ pub struct AgentConfig {
     /// numbers (lateral offset, heading angles to the route near and 25 m ahead; sim-core's
     /// `Env::path_features`), not only the paper's unsigned d (default false).
     pub path_features: bool,
-    /// Exploration: ε decays linearly from `epsilon_start` to `epsilon_end` over
-    /// `epsilon_decay_steps` environment steps (defaults 1.0, 0.05, 200 000).
+    /// Exploration: ε decays linearly from `epsilon_start` (default 1.0) to `epsilon_end` over
+    /// `epsilon_decay_steps` environment steps.
     pub epsilon_start: f32,
+    /// Exploration rate at the end of the decay (default 0.05).
     pub epsilon_end: f32,
+    /// Environment steps of the decay (default 200 000).
     pub epsilon_decay_steps: u64,
     /// Extension switch: per-actor ε (Ape-X: ε_i = ε^(1 + α·i/(N−1)), i the actor's index, N = `apex_actors`)
     /// instead of the schedule (default false; ε = 0.4, α = 7, N = 8).
     pub per_actor_epsilon: bool,
+    /// Ape-X base ε (default 0.4), with `per_actor_epsilon`.
     pub apex_epsilon: f32,
+    /// Ape-X exponent α (default 7), with `per_actor_epsilon`.
     pub apex_alpha: f32,
+    /// Ape-X actor count N the exponents are spread over (default 8), with `per_actor_epsilon`.
     pub apex_actors: u32,
     /// Updates between weight publications to actors (default 10).
     pub publish_every_updates: u64,
@@ -164,13 +174,13 @@ pub struct ServiceConfig {
     /// Bytes per replay log segment (default 64 MiB); segments whose transitions have all left
     /// the replay are deleted, so the log holds about the replay's bytes plus one segment.
     pub replay_log_segment_bytes: u64,
-    /// PEM certificate the learner serves TLS with (default empty: plaintext); with `tls_key`.
-    /// Re-read on SIGHUP and when it changes.
+    /// PEM certificate the learner serves TLS with, gRPC and metrics (default empty: plaintext);
+    /// with `tls_key`. Re-read on SIGHUP and when it changes (`--tls-cert`).
     pub tls_cert: String,
-    /// PEM private key of `tls_cert` (default empty).
+    /// PEM private key of `tls_cert` (default empty; `--tls-key`).
     pub tls_key: String,
     /// PEM CA certificate(s) clients' certificates must chain to: mutual TLS (default empty:
-    /// clients need no certificate). Needs `tls_cert`.
+    /// clients need no certificate). Needs `tls_cert` (`--tls-client-ca`).
     pub tls_client_ca: String,
 }
 

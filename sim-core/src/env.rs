@@ -10,6 +10,7 @@ use serde::Serialize;
 use crate::camera::{BirdsEye, Camera, Image, SceneBox, car_box, prop_box, walker_box};
 use crate::collision::{CollisionKind, Obb, leaves_drivable_area};
 use crate::config::{ConfigError, EnvConfig, Variant};
+use crate::hash::Fnv1a64;
 use crate::hazards::spawn::{feasible, place};
 use crate::hazards::walker::WALKER_HEIGHT;
 use crate::hazards::{Hazard, HazardInfo};
@@ -456,25 +457,25 @@ impl Env {
     /// same seed and actions show bit-identical trajectories.
     #[must_use]
     pub fn state_hash(&self) -> u64 {
-        let mut h = Fnv::default();
+        let mut h = Fnv1a64::default();
         let e = &self.ego;
         for x in [e.pos.x, e.pos.y, e.heading, e.speed, e.steer, self.tracking.d, self.tracking.s] {
-            h.write(x.to_bits() as u64);
+            h.write_u64(x.to_bits() as u64);
         }
         for c in &self.traffic.cars {
             for x in [c.pos.x, c.pos.y, c.heading, c.speed, c.s] {
-                h.write(x.to_bits() as u64);
+                h.write_u64(x.to_bits() as u64);
             }
-            h.write(c.lane as u64);
-            h.write(c.active as u64);
+            h.write_u64(c.lane as u64);
+            h.write_u64(c.active as u64);
         }
         for p in &self.parked {
-            h.write(p.centre.x.to_bits() as u64);
+            h.write_u64(p.centre.x.to_bits() as u64);
         }
         if let Some(hz) = &self.hazard {
-            hz.hash_into(&mut |x| h.write(x));
+            hz.hash_into(&mut |x| h.write_u64(x));
         }
-        h.0
+        h.finish()
     }
 
     fn info_now(&self, collision: Option<CollisionKind>, arrived: bool, reward_terms: RewardTerms) -> StepInfo {
@@ -593,25 +594,6 @@ fn bent_point(route: &Route, d: &Detour, s: f32) -> Vec2 {
 const HAZARD_STREAM: u64 = 0x0048_415a;
 /// Random routes a hazard episode draws at most to find one with room for its kind.
 const HAZARD_ROUTE_TRIES: usize = 40;
-
-/// 64-bit FNV-1a over words.
-#[derive(Debug)]
-struct Fnv(u64);
-
-impl Default for Fnv {
-    fn default() -> Self {
-        Self(0xcbf2_9ce4_8422_2325)
-    }
-}
-
-impl Fnv {
-    fn write(&mut self, x: u64) {
-        for b in x.to_le_bytes() {
-            self.0 ^= u64::from(b);
-            self.0 = self.0.wrapping_mul(0x0100_0000_01b3);
-        }
-    }
-}
 
 #[cfg(test)]
 mod tests {

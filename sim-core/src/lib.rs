@@ -11,6 +11,7 @@ pub mod collision;
 pub mod config;
 pub mod env;
 pub mod expert;
+pub mod hash;
 pub mod hazards;
 pub mod map;
 pub mod math;

@@ -14,7 +14,7 @@
 
 use std::path::{Path, PathBuf};
 
-use anyhow::{Context, Result, bail};
+use anyhow::{Result, bail};
 use clap::Args;
 
 pub mod periodic;
@@ -117,7 +117,7 @@ pub fn run(args: &EvalArgs) -> Result<()> {
 /// with `--json`, else the table.
 fn emit(args: &EvalArgs, json: &str, table: impl FnOnce() -> String) -> Result<()> {
     if let Some(path) = &args.json_out {
-        write_atomically(path, json.as_bytes())?;
+        agent::atomic_write::write_atomic(path, json.as_bytes(), None)?;
     }
     if args.json {
         println!("{json}");
@@ -160,13 +160,6 @@ fn run_suite(args: &EvalArgs, name: &str) -> Result<()> {
     );
     let report = evaluate_suite(&mut agents, &opts)?;
     emit(args, &serde_json::to_string(&report)?, || suite_table(&report, args.markdown))
-}
-
-/// Writes through a temporary file and a rename, so that an interrupted run leaves no half file.
-fn write_atomically(path: &Path, bytes: &[u8]) -> Result<()> {
-    let tmp = path.with_extension(format!("tmp-{}", std::process::id()));
-    std::fs::write(&tmp, bytes).with_context(|| format!("writing {}", tmp.display()))?;
-    std::fs::rename(&tmp, path).with_context(|| format!("renaming {} to {}", tmp.display(), path.display()))
 }
 
 /// The routes `town` has: a map without named places has the route types found in it by shape

@@ -4,7 +4,6 @@
 //! them never reads half of one). A CA already in the directory is kept, so running the command
 //! again renews the server and client certificates and clients go on trusting the same `ca.pem`.
 
-use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
@@ -167,23 +166,9 @@ fn check_chain(ca: &str, cert: &str, host: &str) -> Result<()> {
     Ok(())
 }
 
-/// Writes `text` to `path` with `mode`, through a temporary file renamed over it.
+/// Writes `text` to `path` with `mode`, atomically.
 fn write_file(path: &Path, text: &str, mode: u32) -> Result<()> {
-    use std::os::unix::fs::OpenOptionsExt;
-    let tmp = path.with_extension("tmp");
-    let mut f = std::fs::OpenOptions::new()
-        .write(true)
-        .create(true)
-        .truncate(true)
-        .mode(mode)
-        .open(&tmp)
-        .with_context(|| format!("writing {}", tmp.display()))?;
-    // The mode of an existing file is not changed by `open`.
-    std::fs::set_permissions(&tmp, std::os::unix::fs::PermissionsExt::from_mode(mode))?;
-    f.write_all(text.as_bytes())?;
-    f.sync_all()?;
-    std::fs::rename(&tmp, path).with_context(|| format!("writing {}", path.display()))?;
-    Ok(())
+    Ok(agent::atomic_write::write_atomic(path, text.as_bytes(), Some(mode))?)
 }
 
 #[cfg(test)]

@@ -10,7 +10,6 @@
 //! `BLOCK` in the version number at a restart.
 
 use std::fs;
-use std::io::Write;
 use std::path::{Path, PathBuf};
 
 /// Versions leased at a time.
@@ -75,22 +74,13 @@ impl VersionLease {
     }
 }
 
-/// Writes `end` to `path` durably: a temporary file, synced, renamed over, the directory synced.
+/// Writes `end` to `path` durably and atomically.
 fn record(path: &Path, end: u64) -> Result<(), LeaseError> {
-    let io = |action: &'static str, p: &Path| {
-        let p = p.to_owned();
-        move |source| LeaseError::Io { path: p.clone(), action, source }
-    };
-    let tmp = path.with_extension("tmp");
-    let mut f = fs::File::create(&tmp).map_err(io("creating", &tmp))?;
-    f.write_all(format!("{end}\n").as_bytes()).map_err(io("writing", &tmp))?;
-    f.sync_all().map_err(io("syncing", &tmp))?;
-    fs::rename(&tmp, path).map_err(io("renaming into place", path))?;
-    #[cfg(unix)]
-    if let Some(dir) = path.parent() {
-        fs::File::open(dir).and_then(|d| d.sync_all()).map_err(io("syncing the directory of", path))?;
-    }
-    Ok(())
+    agent::atomic_write::write_atomic(path, format!("{end}\n").as_bytes(), None).map_err(|e| LeaseError::Io {
+        path: e.path,
+        action: e.action,
+        source: e.source,
+    })
 }
 
 #[cfg(test)]

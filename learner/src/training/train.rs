@@ -9,6 +9,8 @@ use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
+use agent::backoff::Backoff;
+
 use crate::state::{PublishedWeights, Shared};
 use crate::storage::checkpoint;
 use crate::storage::replay::Sample;
@@ -63,12 +65,12 @@ pub fn save_checkpoint(shared: &Shared, dqn: &Dqn, run_dir: &std::path::Path) ->
 #[derive(Debug)]
 struct CheckpointSchedule {
     next: Instant,
-    retry: Duration,
+    retry: Backoff,
 }
 
 impl CheckpointSchedule {
-    const FIRST_RETRY: Duration = Duration::from_secs(5);
-    const MAX_RETRY: Duration = Duration::from_secs(300);
+    /// 5 s doubling to 5 min, without jitter (one learner, no herd).
+    const RETRY: Backoff = Backoff::new(Duration::from_secs(5), Duration::from_secs(300));
 
     /// Writes a checkpoint if one is due; a failure is logged, shown in Status and retried.
     fn tick(&mut self, shared: &Shared, dqn: &Dqn, run_dir: &std::path::Path, interval: Duration) {
@@ -82,14 +84,14 @@ impl CheckpointSchedule {
                     tracing::info!("checkpoints work again");
                 }
                 self.next = Instant::now() + interval;
-                self.retry = Self::FIRST_RETRY;
+                self.retry.reset();
             }
             Err(e) => {
                 let message = format!("{e:#}");
-                tracing::error!(error = %message, retry_in_secs = self.retry.as_secs(), "writing a checkpoint failed; training goes on and the write is retried");
+                let retry = self.retry.next_wait();
+                tracing::error!(error = %message, retry_in_secs = retry.as_secs(), "writing a checkpoint failed; training goes on and the write is retried");
                 *shared.checkpoint_error.lock().expect("checkpoint error lock") = Some(message);
-                self.next = Instant::now() + self.retry;
-                self.retry = (self.retry * 2).min(Self::MAX_RETRY);
+                self.next = Instant::now() + retry;
             }
         }
     }
@@ -99,8 +101,7 @@ impl CheckpointSchedule {
 pub fn run(shared: &Arc<Shared>, mut dqn: Dqn, run_dir: &std::path::Path) -> anyhow::Result<Dqn> {
     let a = shared.cfg.agent.clone();
     let interval = Duration::from_secs(shared.cfg.service.checkpoint_interval_secs.max(1));
-    let mut checkpoints =
-        CheckpointSchedule { next: Instant::now() + interval.min(FIRST_CHECKPOINT), retry: CheckpointSchedule::FIRST_RETRY };
+    let mut checkpoints = CheckpointSchedule { next: Instant::now() + interval.min(FIRST_CHECKPOINT), retry: CheckpointSchedule::RETRY };
     let mut stored_at_fill: Option<u64> = None;
     // A resumed learner's rebuilt replay was trained on by its predecessor: the replay ratio
     // counts what arrives from now on.

@@ -26,6 +26,6 @@ impl Image {
     /// 64-bit FNV-1a hash of the pixels, for determinism checks.
     #[must_use]
     pub fn hash(&self) -> u64 {
-        self.data.iter().fold(0xcbf2_9ce4_8422_2325u64, |h, &b| (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3))
+        crate::hash::fnv1a64(&self.data)
     }
 }

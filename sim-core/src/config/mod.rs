@@ -25,9 +25,12 @@ use crate::vehicle::VehicleParams;
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct EnvConfig {
+    /// `hybrid` (the paper's agent: the network sees d, the reward has r_w) or `end_to_end`
+    /// (camera and speed only, no r_w).
     pub variant: Variant,
-    /// The town a run trains on: an embedded town's name (`default_town`, `held_out_town`) or a
-    /// map file, the text format or OpenDRIVE `.xodr` (default: none, the default town).
+    /// The town to train on: `default_town` (default), `held_out_town` or a map file (text format
+    /// or OpenDRIVE `.xodr`, relative to the learner's directory); the learner sends it to every
+    /// actor.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub map: Option<String>,
     /// Simulation step, seconds (default 0.1, the paper's 10 Hz).
@@ -42,15 +45,20 @@ pub struct EnvConfig {
     pub time_limit: u32,
     /// Steps before an evaluation route is truncated (default 300: waiting at junctions takes time).
     pub eval_time_limit: u32,
+    /// The paper's reward: r = β_v·r_v + β_l·r_l + β_w·r_w per step, collision and arrival
+    /// rewards at the end.
     pub reward: RewardConfig,
+    /// Other cars.
     pub traffic: TrafficConfig,
+    /// The ego vehicle (kinematic bicycle model).
     pub vehicle: VehicleParams,
-    /// The front camera; `None` renders no image (default: 84×84 gray).
+    /// The front camera (default 84×84 gray; omit the table for none: no image is rendered).
     pub camera: Option<CameraConfig>,
-    /// Hazards the planner does not know (default: none).
+    /// Hazards the planner does not know: stalled car, pedestrian crossing, cut-in, hard brake,
+    /// construction, opposite overtaker, junction runner (default: none).
     pub hazards: HazardsConfig,
-    /// The planner giving the waypoints: `astar` (the global route, default) or `astar+avoid`
-    /// (bent around perceived hazards and obstacles).
+    /// The planner giving the waypoints (d, path features, the model-based driver): `astar` (the
+    /// global route, default) or `astar+avoid` (bent around perceived hazards and obstacles).
     pub planner: PlannerKind,
 }
 
@@ -88,6 +96,7 @@ pub struct TrafficConfig {
     pub parked_car_ahead: Option<f32>,
     /// Traffic keeps at least this far from the ego vehicle when placed, metres (default 25).
     pub spawn_clearance: f32,
+    /// The Intelligent Driver Model of the traffic cars.
     pub idm: IdmParams,
 }
 

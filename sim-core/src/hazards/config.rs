@@ -10,7 +10,9 @@ use crate::config::error::ConfigError;
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Range {
+    /// Lower end of the range.
     pub min: f32,
+    /// Upper end of the range.
     pub max: f32,
 }
 
@@ -37,7 +39,8 @@ impl Range {
 pub struct HazardsConfig {
     /// Probability that an episode gets a hazard, 0 to 1 (default 0: none).
     pub rate: f32,
-    /// The kinds drawn from, uniformly (default: all seven).
+    /// The kinds drawn from, uniformly (stalled_car, pedestrian_crossing, cut_in, hard_brake,
+    /// construction, opposite_overtaker, junction_runner; default all).
     pub kinds: Vec<HazardKind>,
     /// Route distance from the start to the hazard, metres (default 45–75).
     pub distance: Range,

@@ -1,0 +1,207 @@
+//! Generates `agent/src/config_docs/fields.rs`, the descriptions `learner config` prints above
+//! every table and field, from the `///` doc comments of `RunConfig` and the structs it gathers
+//! (here and in sim-core), and fails when the committed file differs: the doc comments are the one
+//! source. Regenerate with `UPDATE_SOURCEGEN=1 cargo test -p agent --test sourcegen`.
+//! (rust-analyzer's "sourcegen" tests.)
+
+use std::collections::BTreeMap;
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+/// The generated file, relative to the agent crate.
+const GENERATED: &str = "src/config_docs/fields.rs";
+/// The struct whose fields are the top level of the configuration file.
+const ROOT: &str = "RunConfig";
+
+/// A struct that derives `Deserialize`: its fields as the configuration file names them.
+struct ConfigStruct {
+    file: PathBuf,
+    fields: Vec<Field>,
+}
+
+struct Field {
+    /// The name in the file (`#[serde(rename)]` applied).
+    key: String,
+    /// The doc comment, lines joined by spaces; empty when there is none.
+    doc: String,
+    /// The struct name of the field's type (`Option<T>` unwrapped), if it is a plain path.
+    type_name: Option<String>,
+}
+
+#[test]
+fn config_field_descriptions_are_generated_from_the_doc_comments() {
+    let agent = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let mut structs = BTreeMap::new();
+    let workspace = agent.parent().expect("agent/ is in the workspace");
+    for dir in [workspace.join("agent/src"), workspace.join("sim-core/src")] {
+        collect(&dir, &mut structs);
+    }
+    let mut entries = Vec::new();
+    walk(&structs, ROOT, "", &mut entries);
+    let text = render(&entries);
+    let path = agent.join(GENERATED);
+    let committed = std::fs::read_to_string(&path).unwrap_or_default();
+    if committed == text {
+        return;
+    }
+    if std::env::var_os("UPDATE_SOURCEGEN").is_some() {
+        std::fs::write(&path, &text).unwrap_or_else(|e| panic!("writing {}: {e}", path.display()));
+        return;
+    }
+    panic!(
+        "{} is not what the configuration structs' doc comments give: regenerate it with \
+         `UPDATE_SOURCEGEN=1 cargo test -p agent --test sourcegen` and commit it",
+        path.display()
+    );
+}
+
+/// Every struct deriving `Deserialize` in the `.rs` files under `dir`, by name.
+fn collect(dir: &Path, out: &mut BTreeMap<String, ConfigStruct>) {
+    let mut entries: Vec<_> =
+        std::fs::read_dir(dir).unwrap_or_else(|e| panic!("{}: {e}", dir.display())).map(|e| e.unwrap().path()).collect();
+    entries.sort();
+    for path in entries {
+        if path.is_dir() {
+            collect(&path, out);
+            continue;
+        }
+        if path.extension().is_none_or(|x| x != "rs") {
+            continue;
+        }
+        let source = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+        let file = syn::parse_file(&source).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+        for item in file.items {
+            let syn::Item::Struct(item) = item else { continue };
+            if !derives_deserialize(&item.attrs) {
+                continue;
+            }
+            let syn::Fields::Named(named) = &item.fields else { continue };
+            let fields = named
+                .named
+                .iter()
+                .filter(|f| !serde_flag(&f.attrs, "skip"))
+                .map(|f| Field {
+                    key: serde_rename(&f.attrs).unwrap_or_else(|| f.ident.as_ref().unwrap().to_string()),
+                    doc: doc(&f.attrs),
+                    type_name: type_name(&f.ty),
+                })
+                .collect();
+            let name = item.ident.to_string();
+            let previous = out.insert(name.clone(), ConfigStruct { file: path.clone(), fields });
+            if let Some(previous) = previous {
+                panic!("two structs named `{name}` derive Deserialize ({} and {}): rename one", previous.file.display(), path.display());
+            }
+        }
+    }
+}
+
+/// Appends (dotted path, description) for every field of `name` and, depth first, of the structs
+/// they hold.
+fn walk(structs: &BTreeMap<String, ConfigStruct>, name: &str, prefix: &str, out: &mut Vec<(String, String)>) {
+    let s = &structs[name];
+    for field in &s.fields {
+        let path = format!("{prefix}{}", field.key);
+        assert!(
+            !field.doc.is_empty(),
+            "`{name}::{}` ({}) has no doc comment: `learner config` prints it as the description of `{path}`; add a `///` line",
+            field.key,
+            s.file.display()
+        );
+        out.push((path.clone(), field.doc.clone()));
+        if let Some(inner) = field.type_name.as_deref().filter(|t| structs.contains_key(*t)) {
+            walk(structs, inner, &format!("{path}."), out);
+        }
+    }
+}
+
+fn render(entries: &[(String, String)]) -> String {
+    let mut out = String::from(
+        "//! Generated by `agent/tests/sourcegen.rs` from the doc comments of `RunConfig` and the structs\n\
+         //! it gathers: do not edit; change the doc comment and run\n\
+         //! `UPDATE_SOURCEGEN=1 cargo test -p agent --test sourcegen`.\n\n\
+         /// Every field and table of the configuration file by dotted path, and what it means.\n\
+         #[rustfmt::skip]\n\
+         pub const FIELD_DOCS: &[(&str, &str)] = &[\n",
+    );
+    for (path, doc) in entries {
+        writeln!(out, "    ({path:?}, {doc:?}),").unwrap();
+    }
+    out.push_str("];\n");
+    out
+}
+
+fn derives_deserialize(attrs: &[syn::Attribute]) -> bool {
+    let mut found = false;
+    for attr in attrs.iter().filter(|a| a.path().is_ident("derive")) {
+        attr.parse_nested_meta(|m| {
+            found |= m.path.segments.last().is_some_and(|s| s.ident == "Deserialize");
+            Ok(())
+        })
+        .unwrap();
+    }
+    found
+}
+
+/// Whether a `#[serde(...)]` attribute holds the bare word `flag`.
+fn serde_flag(attrs: &[syn::Attribute], flag: &str) -> bool {
+    let mut found = false;
+    serde_items(attrs, |m| {
+        found |= m.path.is_ident(flag);
+    });
+    found
+}
+
+fn serde_rename(attrs: &[syn::Attribute]) -> Option<String> {
+    let mut rename = None;
+    serde_items(attrs, |m| {
+        if m.path.is_ident("rename") {
+            let lit: syn::LitStr = m.value().unwrap().parse().unwrap();
+            rename = Some(lit.value());
+        }
+    });
+    rename
+}
+
+/// Calls `f` on every item of the field's `#[serde(...)]` attributes, skipping their values.
+fn serde_items(attrs: &[syn::Attribute], mut f: impl FnMut(&syn::meta::ParseNestedMeta)) {
+    for attr in attrs.iter().filter(|a| a.path().is_ident("serde")) {
+        attr.parse_nested_meta(|m| {
+            assert!(!m.path.is_ident("flatten"), "#[serde(flatten)] in a configuration struct: teach agent/tests/sourcegen.rs about it");
+            f(&m);
+            if m.input.peek(syn::Token![=]) {
+                let _: syn::Expr = m.value()?.parse()?;
+            }
+            Ok(())
+        })
+        .unwrap();
+    }
+}
+
+/// The doc comment's lines, trimmed and joined by single spaces.
+fn doc(attrs: &[syn::Attribute]) -> String {
+    let mut lines = Vec::new();
+    for attr in attrs.iter().filter(|a| a.path().is_ident("doc")) {
+        if let syn::Meta::NameValue(nv) = &attr.meta
+            && let syn::Expr::Lit(syn::ExprLit { lit: syn::Lit::Str(s), .. }) = &nv.value
+        {
+            let line = s.value();
+            if !line.trim().is_empty() {
+                lines.push(line.trim().to_owned());
+            }
+        }
+    }
+    lines.join(" ")
+}
+
+/// `T` of a field of type `T`, `a::b::T` or `Option<T>`.
+fn type_name(ty: &syn::Type) -> Option<String> {
+    let syn::Type::Path(p) = ty else { return None };
+    let last = p.path.segments.last()?;
+    if last.ident == "Option"
+        && let syn::PathArguments::AngleBracketed(args) = &last.arguments
+        && let Some(syn::GenericArgument::Type(inner)) = args.args.first()
+    {
+        return type_name(inner);
+    }
+    Some(last.ident.to_string())
+}
