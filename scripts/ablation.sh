@@ -12,14 +12,10 @@
 #                            [--only NAME,NAME] [--runs-dir DIR] [--no-build]
 set -euo pipefail
 
-# name | overrides of [agent] on top of the preset | preset | what it tests
-variants=(
-    "hybrid-tuned||hybrid-tuned|the tuned hybrid agent, every switch as the preset has it"
-    "no-path-features|path_features = false|hybrid-tuned|the paper's planner input only (unsigned d), no signed path features"
-    "one-step-dqn|double_dqn = false\nn_step = 1|hybrid-tuned|plain one-step DQN targets (no double DQN, no 3-step returns)"
-    "prioritized|prioritized_replay = true|hybrid-tuned|prioritized replay added (alpha 0.6, beta 0.4)"
-    "end-to-end-tuned||end-to-end-tuned|no planner at all: camera and speed only, no r_w"
-)
+# shellcheck source=scripts/lib.sh
+source "$(dirname "$0")/lib.sh"
+# The variants (NAME|PRESET|TOML|WHAT), from experiments/agents.txt.
+agents_of ablation variants
 
 usage() {
     cat <<'EOF'
@@ -66,8 +62,6 @@ while [[ $# -gt 0 ]]; do
         *) echo "ablation.sh: unknown argument \`$1\` (see --help)" >&2; exit 2 ;;
     esac
 done
-# shellcheck source=scripts/lib.sh
-source "$(dirname "$0")/lib.sh"
 require_positive ablation.sh "minutes:$minutes" "seed:$seed" "actors:$actors" "envs:$envs" "runs:$runs"
 names=()
 for v in "${variants[@]}"; do names+=("${v%%|*}"); done
@@ -96,16 +90,15 @@ fi
 mkdir -p "$runs_dir"
 
 for v in "${variants[@]}"; do
-    IFS='|' read -r name overrides preset what <<<"$v"
+    IFS='|' read -r name preset extra what <<<"$v"
     printf '%s\n' "${wanted[@]}" | grep -qx -- "$name" || continue
     cfg="$runs_dir/$name.toml"
     {
         echo "# Ablation variant \`$name\`: $what."
         echo "preset = \"$preset\""
-        if [[ -n "$overrides" ]]; then
+        if [[ -n "$extra" ]]; then
             echo
-            echo "[agent]"
-            printf '%b\n' "$overrides"
+            printf '%b\n' "$extra"
         fi
     } >"$cfg"
     echo "== training $name for up to $minutes min ($runs_dir/$name)" >&2

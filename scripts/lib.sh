@@ -13,3 +13,25 @@ require_positive() {
         fi
     done
 }
+
+# agents_of GROUP ARRAY: fills ARRAY with the agents of experiments/agents.txt in GROUP (main,
+# search, ablation), in the file's order, each as NAME|PRESET|TOML|WHAT; exits with status 2,
+# naming the file and the group, when it has none.
+agents_of() {
+    local group="$1" line file
+    local -n rows="$2"
+    file="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)/experiments/agents.txt"
+    if [[ ! -f "$file" ]]; then
+        echo "$file: not found (the agents of the experiments)" >&2
+        exit 2
+    fi
+    rows=()
+    while IFS= read -r line || [[ -n "$line" ]]; do
+        [[ -z "$line" || "$line" == \#* ]] && continue
+        if [[ "${line%%|*}" == "$group" ]]; then rows+=("${line#*|}"); fi
+    done <"$file"
+    if [[ ${#rows[@]} -eq 0 ]]; then
+        echo "$file: no agent in group \`$group\`" >&2
+        exit 2
+    fi
+}

@@ -3,37 +3,31 @@
 # same budget of environment steps, evaluates each run greedily on the town it trained on and on
 # a held-out town it never saw, searches settings for the end-to-end baseline, and writes the
 # table with bootstrap confidence intervals (docs/RESULTS.md), the raw numbers
-# (docs/results.json) and the figures (docs/figures/).
+# (experiments/results.json) and the figures (docs/figures/).
 #
-# Each (agent, seed) run keeps what the results need in docs/results/AGENT/seedS/ (its evaluations,
+# Each (agent, seed) run keeps what the results need in experiments/results/AGENT/seedS/ (its evaluations,
 # its periodic evaluations, its training curves thinned to at most 2,000 episodes, a run.json); a
 # run whose run.json exists is done and is skipped. So the script is resumable at two levels: a
 # stopped training run continues from its checkpoint in the runs directory to the same budget, and
 # a finished run is never trained again, even from a fresh clone (its results are committed).
 #
 # Usage: scripts/reproduce.sh [--seeds N] [--env-steps N] [--agents A,B] [--runs N] [--report-only]
-#                             [--runs-dir DIR] [--out-dir DIR] [--smoke] [--no-build]
+#                             [--runs-dir DIR] [--out-dir DIR] [--data-dir DIR] [--smoke] [--no-build]
 set -euo pipefail
 # The whole script is one block, read before it runs: a file edited (or pulled) during an
 # experiment of hours cannot change what the running shell reads next.
 {
 
-# name | preset | TOML added to the preset's file ("\n" between lines) | what it is
-agents=(
-    "hybrid-tuned|hybrid-tuned||the tuned hybrid agent: the default of actor train"
-    "hybrid-paper-inputs|hybrid-tuned|[agent]\npath_features = false|the tuned hybrid agent with the paper's planner input only (unsigned d, no path features)"
-    "paper|paper||the paper's hybrid agent as published (84x84, one-step DQN)"
-    "end-to-end|end-to-end||the paper's end-to-end baseline as published (84x84, one-step DQN, no r_w)"
-)
-# The search for the end-to-end baseline's settings: seed 1 each; the best (scripts/results.py
-# best-end-to-end: periodic evaluations, not the final one) then runs the other seeds. The paper's
-# own preset is a candidate, so the baseline is never worse than the paper's.
-search=(
-    "e2e-tuned|end-to-end-tuned||end-to-end with the hybrid agent's tuning (48x48, double DQN, 3-step, eps over 100k)"
-    "e2e-one-step|end-to-end-tuned|[agent]\nn_step = 1|the tuning with one-step targets (a collision reaches fewer states)"
-    "e2e-slow-eps|end-to-end-tuned|[agent]\nepsilon_decay_steps = 300000|the tuning with exploration decayed over 300k steps, not 100k"
-    "end-to-end|end-to-end||the paper's end-to-end preset (an agent of its own too: its seed 1 is run here)"
-)
+# shellcheck source=scripts/lib.sh
+source "$(dirname "$0")/lib.sh"
+# The agents (NAME|PRESET|TOML|WHAT) and the search for the end-to-end baseline's settings, from
+# experiments/agents.txt. `e2e-best`, the search's winner, is trained by the search's rules below.
+agents_of main agents
+for i in "${!agents[@]}"; do
+    if [[ "${agents[$i]}" == "e2e-best|"* ]]; then unset "agents[$i]"; fi
+done
+agents=("${agents[@]}")
+agents_of search search
 
 # list ENTRY...: the name and description of each table entry, one per line.
 list() {
@@ -55,9 +49,12 @@ scripts/reproduce.sh — the experiment of docs/RESULTS.md: agents × seeds, two
                   `e2e-best` for the search's winner); the report still covers every finished run
   --runs N        evaluation runs per route and town (default 5)
   --eval-every M  minutes between periodic greedy evaluations during training (default 1)
-  --report-only   train nothing: rebuild the tables, results.json and figures from docs/results
+  --report-only   train nothing: rebuild the tables, results.json and figures from
+                  experiments/results
   --runs-dir DIR  where the training run directories go (default runs/reproduce)
-  --out-dir DIR   where RESULTS.md, results.json, results/ and figures/ go (default docs)
+  --out-dir DIR   where RESULTS.md and figures/ go (default docs)
+  --data-dir DIR  where results.json and the kept runs (results/) go (default experiments, or
+                  the --out-dir given)
   --smoke         a test of the pipeline: tiny camera and network, 30k steps, 2 seeds, 1 run;
                   writes to runs/smoke
   --no-build      use the binaries in target/release as they are
@@ -70,7 +67,7 @@ EOF
     echo "End-to-end search (seed 1 each; the best, by periodic evaluation, runs the other seeds):"
     list "${search[@]}"
     echo
-    echo "Rerunning the same command resumes; finished runs (docs/results/AGENT/seedS/run.json) are skipped."
+    echo "Rerunning the same command resumes; finished runs (experiments/results/AGENT/seedS/run.json) are skipped."
 }
 
 seeds=3
@@ -81,6 +78,7 @@ eval_every=1
 report_only=0
 runs_dir=""
 out_dir=""
+data_dir=""
 smoke=0
 build=1
 while [[ $# -gt 0 ]]; do
@@ -93,22 +91,25 @@ while [[ $# -gt 0 ]]; do
         --report-only) report_only=1; shift ;;
         --runs-dir) runs_dir="${2:?--runs-dir needs a directory}"; shift 2 ;;
         --out-dir) out_dir="${2:?--out-dir needs a directory}"; shift 2 ;;
+        --data-dir) data_dir="${2:?--data-dir needs a directory}"; shift 2 ;;
         --smoke) smoke=1; shift ;;
         --no-build) build=0; shift ;;
         -h|--help) usage; exit 0 ;;
         *) echo "reproduce.sh: unknown argument \`$1\` (see --help)" >&2; exit 2 ;;
     esac
 done
-# shellcheck source=scripts/lib.sh
-source "$(dirname "$0")/lib.sh"
 if [[ "$smoke" == 1 ]]; then
     runs_dir="${runs_dir:-runs/smoke/runs}"
     out_dir="${out_dir:-runs/smoke}"
+    data_dir="${data_dir:-$out_dir}"
     runs="${runs:-1}"
     [[ "$env_steps" == 400000 ]] && env_steps=30000
     [[ "$seeds" == 3 ]] && seeds=2
 else
     runs_dir="${runs_dir:-runs/reproduce}"
+    # The pages and figures in docs/, the run data in experiments/; an --out-dir given alone
+    # takes both, as before the run data moved out of docs/.
+    data_dir="${data_dir:-${out_dir:-experiments}}"
     out_dir="${out_dir:-docs}"
     runs="${runs:-5}"
 fi
@@ -132,7 +133,7 @@ trap 'echo; echo "reproduce.sh: interrupted — run the same command again to re
 bin="${CARGO_TARGET_DIR:-target}/release"
 actor="$bin/actor"
 learner="$bin/learner"
-results="$out_dir/results"
+results="$data_dir/results"
 if [[ "$build" == 1 && "$report_only" == 0 ]]; then
     echo "+ cargo build --release --locked -p actor -p learner" >&2
     cargo build --release --locked -p actor -p learner-cli
@@ -234,7 +235,8 @@ if [[ "$report_only" == 0 ]]; then
     done
 fi
 
-echo "== report: $out_dir/RESULTS.md, $out_dir/results.json, $out_dir/figures/" >&2
-python3 scripts/results.py report --results "$results" --out-dir "$out_dir" --learner "$learner"
+echo "== report: $out_dir/RESULTS.md, $data_dir/results.json, $out_dir/figures/" >&2
+python3 scripts/results.py report --results "$results" --out-dir "$out_dir" --json-out "$data_dir/results.json" \
+    --learner "$learner"
 exit
 }

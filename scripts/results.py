@@ -2,9 +2,11 @@
 """The results of scripts/reproduce.sh: keeps each run's outputs, picks the end-to-end search's
 best, and writes the report (tables with bootstrap intervals, results.json, figures).
 
-  keep-run         copies what the results need from a run directory into docs/results/AGENT/seedS
+  keep-run         copies what the results need from a run directory into
+                   experiments/results/AGENT/seedS
   best-end-to-end  prints the search candidate with the best periodic evaluations (seed 1)
-  report           docs/results.json, the generated sections of docs/RESULTS.md, docs/figures/
+  report           experiments/results.json, the generated sections of docs/RESULTS.md,
+                   docs/figures/
 
 Standard library only, so that it runs wherever the project's scripts run.
 """
@@ -19,10 +21,22 @@ import sys
 import time
 from pathlib import Path
 
+AGENTS_FILE = Path(__file__).resolve().parent.parent / "experiments" / "agents.txt"
+
+
+def agents_of(group, path=AGENTS_FILE):
+    """The names of the agents of `group` in experiments/agents.txt (GROUP|NAME|PRESET|TOML|WHAT
+    lines), in the file's order; scripts/lib.sh's `agents_of` reads the same file."""
+    names = [f[1] for f in (line.split("|", 4) for line in path.read_text().splitlines() if line and not line.startswith("#")) if f[0] == group]
+    if not names:
+        raise SystemExit(f"{path}: no agent in group `{group}`")
+    return names
+
+
 # The agents of the main table, in its order. `e2e-best` stands for the search's winner.
-MAIN_AGENTS = ["hybrid-tuned", "hybrid-paper-inputs", "e2e-best", "paper", "end-to-end"]
+MAIN_AGENTS = agents_of("main")
 # The end-to-end search's candidates (seed 1 each); the paper's own `end-to-end` preset is one too.
-SEARCH = ["e2e-tuned", "e2e-one-step", "e2e-slow-eps", "end-to-end"]
+SEARCH = agents_of("search")
 TOWNS = ["default_town", "held_out_town"]
 ROUTES = ["straight_highway", "straight_urban", "straight_under_bridge", "slight_curve", "sharp_curve", "right_turn", "left_turn"]
 # Route types an evaluation must complete (in at least half its runs) to count as competent.
@@ -246,7 +260,7 @@ def competence(run):
 
 
 def report(a):
-    results, out_dir = Path(a.results), Path(a.out_dir)
+    results, out_dir, json_out = Path(a.results), Path(a.out_dir), Path(a.json_out)
     runs = load_runs(results)
     best = best_end_to_end(runs)
     names = {n: n for n in MAIN_AGENTS}
@@ -310,11 +324,11 @@ def report(a):
                     "completion": difference(sx, sy, ROUTES, 1, 7 * i + 4),
                     "seeds": [len(sx), len(sy)],
                 }
-    (out_dir / "results.json").write_text(json.dumps(data, indent=1) + "\n")
+    json_out.write_text(json.dumps(data, indent=1) + "\n")
     sections = tables(data, names)
     figures(a, runs, names, out_dir, sections)
     write_results_md(out_dir / "RESULTS.md", sections)
-    print(f"wrote {out_dir / 'results.json'} and the generated sections of {out_dir / 'RESULTS.md'}", file=sys.stderr)
+    print(f"wrote {json_out} and the generated sections of {out_dir / 'RESULTS.md'}", file=sys.stderr)
 
 
 def fmt_ci(value, ci, pct=False):
@@ -389,7 +403,7 @@ def tables(data, names):
     s["runs"] = "\n".join(lines)
     # Search.
     settings = data["search"].get("settings", {})
-    lines = ["| candidate | settings (`results/NAME/seed1/config.toml`) | score: completion, mean return (last two periodic evaluations, seed 1) |",
+    lines = ["| candidate | settings (`experiments/results/NAME/seed1/config.toml`) | score: completion, mean return (last two periodic evaluations, seed 1) |",
              "|---|---|---:|"]
     for n, sc in data["search"].get("scores", {}).items():
         mark = " **(chosen)**" if n == data["search"].get("chosen") else ""
@@ -446,7 +460,8 @@ def main():
     b.add_argument("--results", required=True)
     r = sub.add_parser("report")
     r.add_argument("--results", required=True)
-    r.add_argument("--out-dir", required=True)
+    r.add_argument("--out-dir", required=True, help="where RESULTS.md and figures/ are")
+    r.add_argument("--json-out", required=True, help="the results.json to write")
     r.add_argument("--learner", default="target/release/learner")
     a = p.parse_args()
     if a.command == "keep-run":

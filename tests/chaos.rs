@@ -22,7 +22,8 @@
 //!
 //! A summary line gives the figures. A test of the `actor` package (so that it can start the
 //! `actor` binary) with its own `main` (`harness = false`): the learner process is this same
-//! program, started with `CHAOS_LEARNER=1`. Duration: `--minutes N` (`cargo test -p actor --test
+//! program, started with `CHAOS_LEARNER=1`. A slow test: skipped unless `HD_SLOW_TESTS=1`
+//! (`cargo xtask slow`). Duration: `--minutes N` (`HD_SLOW_TESTS=1 cargo test -p actor --test
 //! chaos -- --minutes 30`) or `CHAOS_MINUTES`; default 3. Seed: `--seed S` or `CHAOS_SEED`.
 
 use std::collections::BTreeMap;
@@ -36,6 +37,9 @@ use bytes::{Buf, BufMut};
 use proto::v1 as pb;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
+
+#[path = "support/slow.rs"]
+mod slow;
 
 const ACTORS: usize = 3;
 /// The replay's byte cap (the smallest allowed): eviction happens during the test.
@@ -56,6 +60,10 @@ fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().collect();
     if args.iter().any(|a| a == "--list") {
         println!("chaos: test");
+        return ExitCode::SUCCESS;
+    }
+    // Minutes of faults: a slow test (`cargo xtask slow`).
+    if slow::skip() {
         return ExitCode::SUCCESS;
     }
     let flag = |name: &str, env: &str| {
