@@ -213,6 +213,37 @@ fn cut_in_car_ends_in_the_ego_lane_ahead() {
 }
 
 #[test]
+fn cut_in_starts_its_lane_change_within_the_drawn_gap_of_the_ego_slower_than_it() {
+    let gap = HazardsConfig::default().cut_in_gap;
+    for town in [Town::default_town(), Town::embedded("held_out_town").unwrap()] {
+        let mut env = Env::new(town, config(HazardKind::CutIn)).unwrap();
+        let expert = Expert::default();
+        for seed in 0..10 {
+            env.reset(seed, Scenario::Random).unwrap();
+            let i = env.hazard.as_ref().unwrap().car.unwrap();
+            let mut change = None;
+            while !env.is_done() && change.is_none() {
+                env.step(expert.act(&env)).unwrap();
+                if env.hazard.as_ref().unwrap().triggered {
+                    let c = &env.traffic.cars[i];
+                    // Bumper to bumper along the route, after the step that started it (the car
+                    // has driven on one step since it measured the gap).
+                    let ahead = env.route.path.project(c.pos).s
+                        - env.tracking.s
+                        - env.cfg.vehicle.length / 2.0
+                        - env.traffic.body(i).half.x
+                        - c.speed * env.cfg.dt;
+                    change = Some((ahead, c.speed, env.ego.speed));
+                }
+            }
+            let (ahead, speed, ego_speed) = change.unwrap_or_else(|| panic!("seed {seed}: no cut-in: {:?}", env.info()));
+            assert!(ahead > gap.min - 1.0 && ahead <= gap.max + 0.5, "seed {seed}: changed lanes {ahead} m ahead of the ego");
+            assert!(speed < ego_speed && speed > 0.5 * ego_speed, "seed {seed}: at {speed} m/s, the ego at {ego_speed}");
+        }
+    }
+}
+
+#[test]
 fn opposite_overtaker_pulls_into_the_ego_lane_and_back() {
     let mut env = Env::new(Town::default_town(), avoid_config(HazardKind::OppositeOvertaker)).unwrap();
     env.reset(0, Scenario::Random).unwrap();

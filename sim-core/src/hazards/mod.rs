@@ -10,6 +10,7 @@
 //! occluding parked car) live here. The route, `d` and the path features never know any of it.
 
 pub mod config;
+pub mod cut_in;
 pub mod kind;
 pub mod prop;
 pub mod runner;
@@ -41,9 +42,10 @@ pub(crate) enum Script {
     Crossing { trigger_time: f32 },
     /// The leader brakes at its limit on reaching the hazard point, stands `stop_time` s, drives on.
     HardBrake { stop_time: f32, stopped_for: f32, released: bool },
-    /// The car alongside moves into `lane` once it is `gap` metres ahead of the ego's front (or
-    /// once the ego nears the hazard point with the car still ahead).
-    CutIn { lane: LaneId, gap: f32, changing: bool, side: f32 },
+    /// The car in the adjacent lane sets its speed by the ego's (`cut_in.rs`) and moves into
+    /// `lane` once its rear is `gap` metres ahead of the ego's front along the route. `phase`: 0
+    /// timing, 1 changing lanes, 2 done (driving on as traffic; also if the ego passes it first).
+    CutIn { lane: LaneId, gap: f32, phase: u8, side: f32 },
     /// The oncoming car pulls `width` metres to its left (into the ego's lane) when near, holds
     /// for 30 m of its travel, and returns. `phase`: 0 waiting, 1 out, 2 returning, 3 done.
     Overtake { width: f32, out_for: f32, phase: u8 },
@@ -130,28 +132,47 @@ impl Hazard {
                     }
                 }
             }
-            Script::CutIn { lane, gap, changing, side } => {
+            Script::CutIn { lane, gap, phase, side } => {
                 let Some(i) = self.car else { return };
                 if !traffic.cars[i].active {
                     return;
                 }
-                if !*changing {
-                    let ahead = (traffic.cars[i].pos - ego.pos).dot(ego.forward()) - 2.0 * half;
-                    // At the drawn gap, or at the latest as the ego nears the hazard point.
-                    if ahead > 0.0 && (ahead < *gap || ego_s > self.s - 5.0) {
-                        *changing = true;
-                        self.triggered = true;
-                        let p = town.map.lanes[*lane].path.project(traffic.cars[i].pos);
-                        let lateral = *side * p.distance;
-                        traffic.move_to_lane(town, i, *lane, p.s, lateral);
+                match *phase {
+                    0 => {
+                        // Bumper to bumper along the route (its lane runs beside the route's).
+                        let window = (route.path.segment_at(ego_s), route.path.segment_at(ego_s + cut_in::WINDOW) + 1);
+                        let car_s = route.path.project_range(traffic.cars[i].pos, window.0, window.1).s;
+                        let ahead = car_s - ego_s - 2.0 * half;
+                        if ahead <= 0.0 {
+                            // The ego got past it: it drives on as traffic.
+                            *phase = 2;
+                            traffic.cars[i].forced_accel = None;
+                        } else if ahead <= *gap {
+                            *phase = 1;
+                            self.triggered = true;
+                            let c = &mut traffic.cars[i];
+                            // It keeps the speed it changes lanes at, then drives on at it.
+                            c.forced_accel = Some(0.0);
+                            c.desired_speed = c.speed;
+                            let p = town.map.lanes[*lane].path.project(c.pos);
+                            let lateral = *side * p.distance;
+                            traffic.move_to_lane(town, i, *lane, p.s, lateral);
+                        } else {
+                            let c = &mut traffic.cars[i];
+                            let wanted = cut_in::wanted_speed(ahead, *gap, ego.speed, town.map.lanes[c.lane].speed_limit);
+                            c.forced_accel = Some(((wanted - c.speed) / dt).clamp(-cut_in::ACCEL, cut_in::ACCEL));
+                        }
                     }
-                } else {
-                    let c = &mut traffic.cars[i];
-                    let step = LANE_CHANGE_SPEED * dt;
-                    c.lateral = if c.lateral.abs() <= step { 0.0 } else { c.lateral - step * c.lateral.signum() };
-                    if c.lateral == 0.0 {
-                        c.forced_accel = None;
+                    1 => {
+                        let c = &mut traffic.cars[i];
+                        let step = LANE_CHANGE_SPEED * dt;
+                        c.lateral = if c.lateral.abs() <= step { 0.0 } else { c.lateral - step * c.lateral.signum() };
+                        if c.lateral == 0.0 {
+                            c.forced_accel = None;
+                            *phase = 2;
+                        }
                     }
+                    _ => {}
                 }
             }
             Script::Overtake { width, out_for, phase } => {

@@ -5,6 +5,7 @@ use rand::RngExt;
 use rand_chacha::ChaCha8Rng;
 
 use super::config::{HazardsConfig, Range};
+use super::cut_in;
 use super::kind::HazardKind;
 use super::runner;
 use super::walker::Walker;
@@ -36,7 +37,8 @@ fn needs(kind: HazardKind, cfg: &HazardsConfig) -> (f32, f32) {
         HazardKind::Construction => (0.0, cfg.closure_length.max + 2.0 + RETURN_ROOM),
         // The leader drives 25 m of the lane before it brakes.
         HazardKind::HardBrake => (27.0, 5.0),
-        // The car starts 25 m before the point, slow, so that the ego reaches it near there.
+        // The car starts 25 m before the point and times its speed so that the ego reaches it
+        // near there (`cut_in.rs`).
         HazardKind::CutIn => (27.0, 40.0),
         HazardKind::OppositeOvertaker => (0.0, 45.0),
         // Placed at a junction instead (`runner.rs`).
@@ -186,10 +188,10 @@ pub fn place(
             let side = if l.left == Some(from) { 1.0 } else { -1.0 };
             let p = at(route, s - 25.0, side * w);
             let fl = &town.map.lanes[from];
-            let i = traffic.add_driving_on_lane(town, from, fl.path.project(p).s, fl.speed_limit * 0.4, fl.successors.first().copied());
+            let i = traffic.add_driving_on_lane(town, from, fl.path.project(p).s, cut_in::MIN_SPEED, fl.successors.first().copied());
             traffic.cars[i].forced_accel = Some(0.0);
             hazard.car = Some(i);
-            hazard.script = Script::CutIn { lane, gap: draw(rng, cfg.cut_in_gap), changing: false, side };
+            hazard.script = Script::CutIn { lane, gap: draw(rng, cfg.cut_in_gap), phase: 0, side };
         }
         HazardKind::OppositeOvertaker => {
             let LaneKind::Road { road, forward, .. } = l.kind else { return None };
