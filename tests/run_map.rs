@@ -4,9 +4,9 @@
 
 mod support;
 
-use agent::checkpoint::fnv1a64;
 use agent::config::RunConfig;
 use learner::serve::{ServeOptions, start};
+use sim_core::hash::fnv1a64;
 use sim_core::map::Map;
 use support::{Process, actor, actor_command, free_port, wait_for, wait_for_file};
 

@@ -84,16 +84,16 @@ async fn register(
         match attempt.await {
             Ok(ok) => return Some(ok),
             Err(err) => {
-                let wait = backoff.next_wait_jittered(rng).as_secs_f64();
+                let wait = backoff.next_wait_jittered(rng);
                 failures += 1;
                 let error = format!("{err:#}");
                 if warned.is_none_or(|t| t.elapsed() >= Duration::from_secs(60)) {
-                    tracing::warn!(learner = %opts.learner, %error, attempts = failures, retry_in_secs = format!("{wait:.1}"), "learner unreachable (said once a minute while it lasts)");
+                    tracing::warn!(learner = %opts.learner, %error, attempts = failures, retry_in_secs = format!("{:.1}", wait.as_secs_f64()), "learner unreachable (said once a minute while it lasts)");
                     warned = Some(Instant::now());
                 } else {
-                    tracing::debug!(learner = %opts.learner, %error, retry_in_secs = format!("{wait:.1}"), "learner unreachable");
+                    tracing::debug!(learner = %opts.learner, %error, retry_in_secs = format!("{:.1}", wait.as_secs_f64()), "learner unreachable");
                 }
-                wait_to_retry(link, Duration::from_secs_f64(wait)).await;
+                wait_to_retry(link, wait).await;
             }
         }
     }

@@ -5,10 +5,10 @@
 use std::path::Path;
 use std::sync::Arc;
 
-use agent::checkpoint::fnv1a64;
 use anyhow::{Context, Result, bail};
 use proto::v1 as pb;
 use sim_core::config::EnvConfig;
+use sim_core::hash::fnv1a64;
 use sim_core::map::Map;
 use sim_core::town::Town;
 

@@ -5,6 +5,7 @@ use std::fs;
 use std::path::Path;
 
 use serde::{Deserialize, Serialize};
+use sim_core::hash::fnv1a64;
 
 use super::error::CheckpointError;
 use super::names::{FILES, FORMAT_VERSION, MANIFEST};
@@ -31,9 +32,6 @@ pub struct FileEntry {
 struct ManifestVersion {
     version: u32,
 }
-
-/// The manifest's file hash: sim-core's 64-bit FNV-1a (one definition for the project).
-pub use sim_core::hash::fnv1a64;
 
 /// The manifest of files given by name and contents.
 #[must_use]

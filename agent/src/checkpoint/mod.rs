@@ -22,6 +22,6 @@ mod state;
 
 pub use error::CheckpointError;
 pub use locate::{Located, locate, resolve};
-pub use manifest::{FileEntry, Manifest, fnv1a64, manifest_of, read_file, read_verified, read_verified_subset};
+pub use manifest::{FileEntry, Manifest, manifest_of, read_file, read_verified, read_verified_subset};
 pub use names::*;
 pub use state::{Counters, Progress, State};

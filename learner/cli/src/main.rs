@@ -328,7 +328,7 @@ fn main() -> Result<()> {
                         Some(dir) => {
                             return Err(anyhow::Error::new(e).context(format!(
                                 "no learner answers at {addr}, the address in {}: is the run still going?",
-                                dir.join(status::ADDR_FILE).display()
+                                dir.join(learner::serve::ADDR_FILE).display()
                             )));
                         }
                         None => return Err(e.into()),

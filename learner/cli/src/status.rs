@@ -5,7 +5,7 @@ use std::path::Path;
 use proto::v1 as pb;
 use serde_json::json;
 
-pub use learner::serve::ADDR_FILE;
+use learner::serve::ADDR_FILE;
 
 /// The address a local run's learner listens on, read from `run_dir/server.addr`.
 pub fn addr_from_run_dir(run_dir: &Path) -> anyhow::Result<String> {

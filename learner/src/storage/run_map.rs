@@ -5,9 +5,9 @@
 
 use std::path::Path;
 
-use agent::checkpoint::fnv1a64;
 use anyhow::{Context, Result, bail};
 use sim_core::config::EnvConfig;
+use sim_core::hash::fnv1a64;
 use sim_core::map::{EMBEDDED_TOWNS, Map};
 
 /// In the run directory: the map's FNV-1a 64 hash (16 hex digits) and its file name.

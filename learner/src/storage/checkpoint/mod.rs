@@ -201,8 +201,9 @@ mod tests {
     use super::*;
     use crate::training::dqn::{Batch, UpdateStats};
     use agent::NetShape;
-    use agent::checkpoint::{DIR, Manifest, fnv1a64};
+    use agent::checkpoint::{DIR, Manifest};
     use agent::config::AgentConfig;
+    use sim_core::hash::fnv1a64;
 
     fn shape() -> NetShape {
         NetShape { height: 8, width: 8, channels: 1, scalars: 2, actions: 2, filters: 2, hidden: 4 }
