@@ -1,11 +1,12 @@
-//! `learner status`: asks a learner for its status and prints it, readable or as JSON.
+//! `learner status`: asks a learner for its status and prints it, readable or as JSON (both from
+//! `learner::telemetry::status_report::StatusReport`).
 
 use std::path::Path;
 
 use proto::v1 as pb;
-use serde_json::json;
 
 use learner::serve::ADDR_FILE;
+use learner::telemetry::status_report::{ActorReport, EpisodesReport, ReliabilityReport, StatusReport};
 
 /// The address a local run's learner listens on, read from `run_dir/server.addr`.
 pub fn addr_from_run_dir(run_dir: &Path) -> anyhow::Result<String> {
@@ -25,120 +26,126 @@ pub fn addr_from_run_dir(run_dir: &Path) -> anyhow::Result<String> {
 /// The status as a JSON value (the `--json` output).
 #[must_use]
 pub fn to_json(s: &pb::StatusResponse) -> serde_json::Value {
-    let ep = s.episodes.unwrap_or_default();
-    let finite = |x: f64| if x.is_finite() { json!(x) } else { serde_json::Value::Null };
-    json!({
-        "run_id": s.run_id,
-        "variant": s.variant,
-        "uptime_secs": s.uptime_secs,
-        "learner_step": s.learner_step,
-        "weights_version": s.weights_version,
-        "transitions_received": s.transitions_received,
-        "transitions_stored": s.transitions_stored,
-        "transitions_rejected": s.transitions_rejected,
-        "batches_rejected": s.batches_rejected,
-        "replay_size": s.replay_size,
-        "replay_capacity": s.replay_capacity,
-        "replay_bytes": s.replay_bytes,
-        "updates_per_sec": s.updates_per_sec,
-        "env_steps_per_sec": s.env_steps_per_sec,
-        "loss": finite(s.loss),
-        "mean_q": finite(s.mean_q),
-        "epsilon": s.epsilon,
-        "episodes": {
-            "total": ep.episodes_total,
-            "window": ep.window,
-            "mean_return": ep.mean_return,
-            "completion_rate": ep.completion_rate,
-            "collision_rate": ep.collision_rate,
-        },
-        "reliability": {
-            "durability": s.durability,
-            "replay_log_bytes": s.replay_log_bytes,
-            "replay_log_segments": s.replay_log_segments,
-            "replay_log_first_position": s.replay_log_first_position,
-            "replay_log_durable_position": s.replay_log_durable_position,
-            "transitions_evicted": s.transitions_evicted,
-            "streams_refused_too_large": s.streams_refused_too_large,
-            "streams_refused_undecodable": s.streams_refused_undecodable,
-            "training_error": s.training_error,
-            "checkpoint_error": s.checkpoint_error,
-            "recent_refusal": s.recent_refusal,
-        },
-        "actors": s.actors.iter().map(|a| json!({
-            "actor_id": a.actor_id,
-            "name": a.name,
-            "actor_index": a.actor_index,
-            "connected": a.connected,
-            "last_seen_secs": a.last_seen_secs,
-            "weights_version": a.weights_version,
-            "version_lag": a.version_lag,
-            "transitions": a.transitions,
-            "rejected_batches": a.rejected_batches,
-            "open_streams": a.open_streams,
-            "registrations": a.registrations,
-            "dropped_steps": a.dropped_steps,
-            "epsilon": a.epsilon,
-        })).collect::<Vec<_>>(),
-    })
+    StatusReport::from(s).to_json()
 }
 
 /// Prints the status readably.
 pub fn print_table(s: &pb::StatusResponse) {
-    let ep = s.episodes.unwrap_or_default();
-    println!("run {} ({}), up {:.0} s", s.run_id, s.variant, s.uptime_secs);
-    println!(
-        "learner step {}   weights version {}   updates/s {:.2}   env steps/s {:.0}",
-        s.learner_step, s.weights_version, s.updates_per_sec, s.env_steps_per_sec
-    );
-    println!("loss {:.4}   mean Q {:.3}   epsilon schedule at the run's step {:.3}", s.loss, s.mean_q, s.epsilon);
-    println!(
-        "replay {}/{} transitions, {:.1} MiB   received {}   stored {}   rejected {} ({} batches)",
-        s.replay_size,
-        s.replay_capacity,
-        s.replay_bytes as f64 / (1 << 20) as f64,
-        s.transitions_received,
-        s.transitions_stored,
-        s.transitions_rejected,
-        s.batches_rejected
-    );
-    println!(
-        "durability {}   replay log {:.1} MiB in {} segments, durable to position {}   evicted {}   refused streams: {} too large, {} undecodable",
-        s.durability,
-        s.replay_log_bytes as f64 / (1 << 20) as f64,
-        s.replay_log_segments,
-        s.replay_log_durable_position,
-        s.transitions_evicted,
-        s.streams_refused_too_large,
-        s.streams_refused_undecodable
-    );
-    if !s.training_error.is_empty() {
-        println!("TRAINING STOPPED: {}", s.training_error);
+    print!("{}", table(&StatusReport::from(s)));
+}
+
+/// The readable status. Destructured without `..`: a field added to the report is placed in the
+/// table (or named `_` here, with the reason) before this compiles.
+#[must_use]
+pub fn table(report: &StatusReport) -> String {
+    let StatusReport {
+        run_id,
+        variant,
+        uptime_secs,
+        run_secs,
+        learner_step,
+        env_steps,
+        weights_version,
+        transitions_received,
+        transitions_stored,
+        transitions_rejected,
+        batches_rejected,
+        replay_size,
+        replay_capacity,
+        replay_bytes,
+        updates_per_sec,
+        env_steps_per_sec,
+        loss,
+        mean_q,
+        epsilon,
+        episodes: EpisodesReport { total, window, mean_return, completion_rate, collision_rate },
+        reliability:
+            ReliabilityReport {
+                durability,
+                replay_log_bytes,
+                replay_log_segments,
+                replay_log_first_position,
+                replay_log_durable_position,
+                transitions_evicted,
+                streams_refused_too_large,
+                streams_refused_undecodable,
+                training_error,
+                checkpoint_error,
+                recent_refusal,
+            },
+        actors,
+    } = report;
+    let mib = |bytes: u64| bytes as f64 / (1 << 20) as f64;
+    let or_nan = |x: &Option<f64>| x.unwrap_or(f64::NAN);
+    let mut out = String::new();
+    let mut line = |text: String| {
+        out.push_str(&text);
+        out.push('\n');
+    };
+    line(format!("run {run_id} ({variant}), up {uptime_secs:.0} s, trained {run_secs:.0} s over its sessions"));
+    line(format!(
+        "learner step {learner_step}   env steps {env_steps}   weights version {weights_version}   updates/s {updates_per_sec:.2}   env steps/s {env_steps_per_sec:.0}"
+    ));
+    line(format!("loss {:.4}   mean Q {:.3}   epsilon schedule at the run's step {epsilon:.3}", or_nan(loss), or_nan(mean_q)));
+    line(format!(
+        "replay {replay_size}/{replay_capacity} transitions, {:.1} MiB   received {transitions_received}   stored {transitions_stored}   rejected {transitions_rejected} ({batches_rejected} batches)",
+        mib(*replay_bytes)
+    ));
+    line(format!(
+        "durability {durability}   replay log {:.1} MiB in {replay_log_segments} segments, positions {replay_log_first_position}..{replay_log_durable_position} durable   evicted {transitions_evicted}   refused streams: {streams_refused_too_large} too large, {streams_refused_undecodable} undecodable",
+        mib(*replay_log_bytes)
+    ));
+    if !training_error.is_empty() {
+        line(format!("TRAINING STOPPED: {training_error}"));
     }
-    if !s.recent_refusal.is_empty() {
-        println!("batches refused (last 30 s): {}", s.recent_refusal);
+    if !recent_refusal.is_empty() {
+        line(format!("batches refused (last 30 s): {recent_refusal}"));
     }
-    if !s.checkpoint_error.is_empty() {
-        println!("checkpoint failing (retried): {}", s.checkpoint_error);
+    if !checkpoint_error.is_empty() {
+        line(format!("checkpoint failing (retried): {checkpoint_error}"));
     }
-    println!(
-        "episodes {} — last {}: mean return {:.2}, completed {:.0}%, collided {:.0}%",
-        ep.episodes_total,
-        ep.window,
-        ep.mean_return,
-        100.0 * ep.completion_rate,
-        100.0 * ep.collision_rate
-    );
-    println!(
-        "{:<34} {:<12} {:>5} {:>9} {:>10} {:>7} {:>12} {:>8} {:>7}",
-        "actor", "name", "index", "connected", "last seen", "lag", "transitions", "rejected", "epsilon"
-    );
-    for a in &s.actors {
-        println!(
-            "{:<34} {:<12} {:>5} {:>9} {:>9.1}s {:>7} {:>12} {:>8} {:>7.3}",
-            a.actor_id, a.name, a.actor_index, a.connected, a.last_seen_secs, a.version_lag, a.transitions, a.rejected_batches, a.epsilon
-        );
+    line(format!(
+        "episodes {total} — last {window}: mean return {mean_return:.2}, completed {:.0}%, collided {:.0}%",
+        100.0 * completion_rate,
+        100.0 * collision_rate
+    ));
+    line(format!(
+        "{:<34} {:<12} {:>5} {:>9} {:>10} {:>8} {:>7} {:>12} {:>8} {:>7} {:>7} {:>8} {:>7}",
+        "actor",
+        "name",
+        "index",
+        "connected",
+        "last seen",
+        "weights",
+        "lag",
+        "transitions",
+        "rejected",
+        "streams",
+        "regist.",
+        "dropped",
+        "epsilon"
+    ));
+    for a in actors {
+        let ActorReport {
+            actor_id,
+            name,
+            actor_index,
+            connected,
+            last_seen_secs,
+            weights_version,
+            version_lag,
+            transitions,
+            rejected_batches,
+            open_streams,
+            registrations,
+            dropped_steps,
+            epsilon,
+        } = a;
+        line(format!(
+            "{actor_id:<34} {name:<12} {actor_index:>5} {connected:>9} {last_seen_secs:>9.1}s {weights_version:>8} {version_lag:>7} {transitions:>12} {rejected_batches:>8} {open_streams:>7} {registrations:>7} {dropped_steps:>8} {epsilon:>7.3}"
+        ));
     }
+    out
 }
 
 #[cfg(test)]
@@ -154,5 +161,72 @@ mod tests {
         assert!(addr_from_run_dir(dir.path()).unwrap_err().to_string().contains("is empty"));
         std::fs::write(dir.path().join(ADDR_FILE), "127.0.0.1:41234\n").unwrap();
         assert_eq!(addr_from_run_dir(dir.path()).unwrap(), "127.0.0.1:41234");
+    }
+
+    /// Every number of the wire message reaches the table: each field set to its own value.
+    #[test]
+    fn the_table_shows_every_field() {
+        let actor = pb::ActorStatus {
+            actor_id: "actor-id-7".into(),
+            name: "west".into(),
+            actor_index: 9101,
+            last_seen_secs: 9102.0,
+            weights_version: 9103,
+            version_lag: 9104,
+            transitions: 9105,
+            rejected_batches: 9106,
+            connected: true,
+            open_streams: 9107,
+            registrations: 9108,
+            dropped_steps: 9109,
+            epsilon: 0.125,
+        };
+        let s = pb::StatusResponse {
+            run_id: "run-x".into(),
+            uptime_secs: 9001.0,
+            learner_step: 9002,
+            weights_version: 9003,
+            transitions_received: 9004,
+            transitions_stored: 9005,
+            transitions_rejected: 9006,
+            batches_rejected: 9007,
+            replay_size: 9008,
+            replay_capacity: 9009,
+            replay_bytes: 9010 << 20,
+            updates_per_sec: 9011.0,
+            env_steps_per_sec: 9012.0,
+            actors: vec![actor],
+            episodes: Some(pb::EpisodeStats {
+                window: 9013,
+                mean_return: 9014.0,
+                completion_rate: 0.25,
+                collision_rate: 0.5,
+                episodes_total: 9015,
+            }),
+            loss: 9016.0,
+            mean_q: 9017.0,
+            epsilon: 0.375,
+            variant: "hybrid".into(),
+            durability: "ack".into(),
+            replay_log_bytes: 9018 << 20,
+            replay_log_segments: 9019,
+            replay_log_first_position: 9020,
+            replay_log_durable_position: 9021,
+            transitions_evicted: 9022,
+            training_error: "boom".into(),
+            checkpoint_error: "disk full".into(),
+            streams_refused_too_large: 9023,
+            streams_refused_undecodable: 9024,
+            recent_refusal: "bad seq".into(),
+            env_steps: 9025,
+            run_secs: 9026.0,
+        };
+        let text = table(&StatusReport::from(&s));
+        for n in (9001..=9026).chain(9101..=9109) {
+            assert!(text.contains(&n.to_string()), "{n} is missing from the table:\n{text}");
+        }
+        for t in ["run-x", "hybrid", "ack", "boom", "disk full", "bad seq", "actor-id-7", "west", "0.125", "0.375", "25%", "50%"] {
+            assert!(text.contains(t), "{t} is missing from the table:\n{text}");
+        }
     }
 }

@@ -230,22 +230,47 @@ fn unknown_actor(id: &str) -> Status {
     ))
 }
 
+/// Why a stream's next message could not be received.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum ReceiveFailure {
+    /// Longer than `service.max_message_bytes`.
+    TooLarge,
+    /// Bytes that are not the message (or a message cut short by the end of its stream).
+    Undecodable,
+    /// The peer went away, reset the stream, or the connection broke: nothing to refuse.
+    StreamEnded,
+}
+
+/// Tells the decoder's refusals from the connection's failures by the status's type, not its text:
+/// tonic's decoder makes its refusals itself (`OUT_OF_RANGE` or `RESOURCE_EXHAUSTED` for the size,
+/// `INTERNAL` for what prost cannot decode), with no underlying error, while a failure of the
+/// connection reaches the handler through `Status::from_error`, which keeps the h2, hyper or I/O
+/// error as the status's `source`.
+fn receive_failure(status: &Status) -> ReceiveFailure {
+    if std::error::Error::source(status).is_some() {
+        return ReceiveFailure::StreamEnded;
+    }
+    match status.code() {
+        Code::OutOfRange | Code::ResourceExhausted => ReceiveFailure::TooLarge,
+        Code::Internal => ReceiveFailure::Undecodable,
+        _ => ReceiveFailure::StreamEnded,
+    }
+}
+
 /// Turns a message that could not be received into the refusal to send back, counted and logged,
-/// or `None` when the stream merely ended (the peer went away, reset it, or the connection
-/// broke).
+/// or `None` when the stream merely ended.
 fn undecodable(shared: &Shared, stream: &OpenStream, peer: &str, status: &Status) -> Option<Status> {
     let msg = status.message();
-    let transport = msg.starts_with("h2 protocol error") || msg.starts_with("Unexpected EOF");
-    let (kind, refusal) = match status.code() {
-        Code::OutOfRange | Code::ResourceExhausted if !transport => (
+    let (kind, refusal) = match receive_failure(status) {
+        ReceiveFailure::TooLarge => (
             "too_large",
             Status::resource_exhausted(format!(
                 "message too large: {msg} (service.max_message_bytes = {}; split batches below it)",
                 shared.cfg.service.max_message_bytes
             )),
         ),
-        Code::Internal if !transport => ("undecodable", Status::invalid_argument(format!("undecodable message: {msg}"))),
-        _ => {
+        ReceiveFailure::Undecodable => ("undecodable", Status::invalid_argument(format!("undecodable message: {msg}"))),
+        ReceiveFailure::StreamEnded => {
             tracing::debug!(%status, "experience stream ended");
             return None;
         }
@@ -540,5 +565,33 @@ pub fn status(shared: &Shared) -> pb::StatusResponse {
         streams_refused_too_large: shared.refused.too_large.load(Ordering::Relaxed),
         streams_refused_undecodable: shared.refused.undecodable.load(Ordering::Relaxed),
         recent_refusal: shared.recent_refusal().unwrap_or_default(),
+        env_steps: c.env_steps,
+        run_secs: shared.run_secs(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::sync::Arc;
+
+    use super::*;
+
+    /// The decoder's own refusals carry no underlying error; the connection's failures carry
+    /// theirs. The message text decides nothing (a tonic upgrade may reword it).
+    #[test]
+    fn a_receive_failure_is_told_by_its_source_not_its_text() {
+        assert_eq!(receive_failure(&Status::out_of_range("Error, decoded message length too large")), ReceiveFailure::TooLarge);
+        assert_eq!(receive_failure(&Status::resource_exhausted("size limit exceeded")), ReceiveFailure::TooLarge);
+        assert_eq!(receive_failure(&Status::internal("failed to decode Protobuf message")), ReceiveFailure::Undecodable);
+        // Text that used to mean "transport" means nothing without the error under it...
+        assert_eq!(receive_failure(&Status::internal("h2 protocol error: reworded")), ReceiveFailure::Undecodable);
+        // ...and a connection's error means the stream ended, whatever the code and text.
+        for mut status in [Status::internal("anything"), Status::resource_exhausted("anything"), Status::out_of_range("x")] {
+            status.set_source(Arc::new(std::io::Error::new(std::io::ErrorKind::ConnectionReset, "reset by peer")));
+            assert_eq!(receive_failure(&status), ReceiveFailure::StreamEnded, "{status:?}");
+        }
+        let from_io = Status::from_error(Box::new(std::io::Error::new(std::io::ErrorKind::BrokenPipe, "broken pipe")));
+        assert_eq!(receive_failure(&from_io), ReceiveFailure::StreamEnded);
+        assert_eq!(receive_failure(&Status::cancelled("peer went away")), ReceiveFailure::StreamEnded);
     }
 }

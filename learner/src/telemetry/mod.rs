@@ -5,4 +5,5 @@ pub mod metrics_log;
 pub mod progress;
 pub mod prometheus;
 pub mod records;
+pub mod status_report;
 pub mod tfevents;
