@@ -33,7 +33,6 @@ use std::process::{Child, Command, ExitCode, Stdio};
 use std::time::{Duration, Instant};
 
 use agent::config::RunConfig;
-use bytes::{Buf, BufMut};
 use proto::v1 as pb;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -408,40 +407,6 @@ impl World {
     }
 }
 
-#[derive(Debug, Clone, Copy, Default)]
-struct Raw;
-
-impl tonic::codec::Codec for Raw {
-    type Encode = Vec<u8>;
-    type Decode = Vec<u8>;
-    type Encoder = Raw;
-    type Decoder = Raw;
-    fn encoder(&mut self) -> Raw {
-        Raw
-    }
-    fn decoder(&mut self) -> Raw {
-        Raw
-    }
-}
-
-impl tonic::codec::Encoder for Raw {
-    type Item = Vec<u8>;
-    type Error = tonic::Status;
-    fn encode(&mut self, item: Vec<u8>, dst: &mut tonic::codec::EncodeBuf<'_>) -> Result<(), tonic::Status> {
-        dst.put_slice(&item);
-        Ok(())
-    }
-}
-
-impl tonic::codec::Decoder for Raw {
-    type Item = Vec<u8>;
-    type Error = tonic::Status;
-    fn decode(&mut self, src: &mut tonic::codec::DecodeBuf<'_>) -> Result<Option<Vec<u8>>, tonic::Status> {
-        let n = src.remaining();
-        Ok(Some(src.copy_to_bytes(n).to_vec()))
-    }
-}
-
 /// One raw message on `StreamExperience`, from a client that never registered.
 async fn raw_stream(addr: &str, message: Vec<u8>) -> Result<(), tonic::Status> {
     let channel = tonic::transport::Endpoint::from_shared(format!("http://{addr}"))
@@ -449,12 +414,7 @@ async fn raw_stream(addr: &str, message: Vec<u8>) -> Result<(), tonic::Status> {
         .connect()
         .await
         .map_err(|e| tonic::Status::unavailable(e.to_string()))?;
-    let mut grpc = tonic::client::Grpc::new(channel);
-    grpc.ready().await.map_err(|e| tonic::Status::unavailable(e.to_string()))?;
-    let path = tonic::codegen::http::uri::PathAndQuery::from_static("/hybriddrive.v1.Learner/StreamExperience");
-    let mut replies = grpc.streaming(tonic::Request::new(tokio_stream::iter(vec![message])), path, Raw).await?.into_inner();
-    while replies.message().await?.is_some() {}
-    Ok(())
+    proto::raw::stream_experience(channel, None, vec![message]).await.map(drop)
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -7,12 +7,10 @@ use std::path::Path;
 use std::time::{Duration, Instant};
 
 use agent::config::RunConfig;
-use bytes::{Buf, BufMut};
 use learner::serve::{Running, ServeOptions, start};
 use proto::v1 as pb;
 use proto::v1::learner_client::LearnerClient;
 use tonic::Code;
-use tonic::codec::{Codec, DecodeBuf, Decoder, EncodeBuf, Encoder};
 use tonic::transport::Channel;
 
 /// The tiny run, with the smallest message limit (1 MiB) and `edit` applied.
@@ -70,59 +68,11 @@ async fn send(c: &mut LearnerClient<Channel>, batches: Vec<pb::ExperienceBatch>)
     Ok(out)
 }
 
-/// A codec that sends any bytes as a message: what a broken or hostile client can put on the
-/// wire.
-#[derive(Debug, Clone, Copy, Default)]
-struct Raw;
-
-impl Codec for Raw {
-    type Encode = Vec<u8>;
-    type Decode = Vec<u8>;
-    type Encoder = Raw;
-    type Decoder = Raw;
-    fn encoder(&mut self) -> Raw {
-        Raw
-    }
-    fn decoder(&mut self) -> Raw {
-        Raw
-    }
-}
-
-impl Encoder for Raw {
-    type Item = Vec<u8>;
-    type Error = tonic::Status;
-    fn encode(&mut self, item: Vec<u8>, dst: &mut EncodeBuf<'_>) -> Result<(), tonic::Status> {
-        dst.put_slice(&item);
-        Ok(())
-    }
-}
-
-impl Decoder for Raw {
-    type Item = Vec<u8>;
-    type Error = tonic::Status;
-    fn decode(&mut self, src: &mut DecodeBuf<'_>) -> Result<Option<Vec<u8>>, tonic::Status> {
-        let n = src.remaining();
-        Ok(Some(src.copy_to_bytes(n).to_vec()))
-    }
-}
-
 /// Streams raw messages to `StreamExperience` (declaring `actor` in the metadata, as actors do)
 /// and returns the status the stream ended with (`Ok` with the replies if it ended with OK).
 async fn raw_stream(addr: &str, actor: Option<&str>, messages: Vec<Vec<u8>>) -> Result<Vec<Vec<u8>>, tonic::Status> {
     let channel = tonic::transport::Endpoint::from_shared(format!("http://{addr}")).unwrap().connect().await.unwrap();
-    let mut grpc = tonic::client::Grpc::new(channel);
-    grpc.ready().await.unwrap();
-    let mut req = tonic::Request::new(tokio_stream::iter(messages));
-    if let Some(id) = actor {
-        req.metadata_mut().insert(proto::client::ACTOR_ID_HEADER, id.parse().unwrap());
-    }
-    let path = tonic::codegen::http::uri::PathAndQuery::from_static("/hybriddrive.v1.Learner/StreamExperience");
-    let mut replies = grpc.streaming(req, path, Raw).await?.into_inner();
-    let mut out = Vec::new();
-    while let Some(m) = replies.message().await? {
-        out.push(m);
-    }
-    Ok(out)
+    proto::raw::stream_experience(channel, actor, messages).await
 }
 
 /// Issue row: "a 64 MiB message, or garbage bytes, on StreamExperience: the stream ends with status
