@@ -50,8 +50,8 @@ pub struct TrainArgs {
     #[arg(long, default_value = "runs/train")]
     pub run_dir: PathBuf,
     /// Local actor processes. One by default: on 2 cores one actor of 4 environments feeds the
-    /// learner at its replay ratio, and a second takes CPU from the updates (measured: 10 updates/s
-    /// with one, 6 with two, docs/RESULTS.md). Add actors on machines with more cores.
+    /// learner at its replay ratio, and a second takes CPU from the updates (docs/RESULTS.md).
+    /// Add actors on machines with more cores.
     #[arg(long, default_value_t = 1)]
     pub actors: usize,
     /// Environments per actor.

@@ -1,5 +1,5 @@
-//! The gate of the slow tests (the chaos test, the tests that train a network for hundreds of
-//! updates): `cargo test --workspace` skips them, each saying so; `cargo xtask slow` (and CI, through
+//! The gate of the slow tests (today the chaos test alone: the learning tests, the corridor
+//! among them, finish in seconds and stay in the fast suite): `cargo test --workspace` skips them, each saying so; `cargo xtask slow` (and CI, through
 //! `cargo xtask ci`) runs them with `HD_SLOW_TESTS=1`. Standard library only, so that every test
 //! file can include it (`#[path = ".../tests/support/slow.rs"] mod slow;`); the list of the slow
 //! tests that `cargo xtask slow` runs is xtask/src/slow.rs, checked against the callers of this file.
