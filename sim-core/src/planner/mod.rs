@@ -102,13 +102,6 @@ impl LocalPlanner {
             PlannerKind::AstarAvoid => Self::Avoid(AvoidPlanner::default()),
         }
     }
-
-    fn get(&self) -> &dyn Planner {
-        match self {
-            Self::Astar(p) => p,
-            Self::Avoid(p) => p,
-        }
-    }
 }
 
 impl Planner for LocalPlanner {
@@ -118,11 +111,21 @@ impl Planner for LocalPlanner {
             Self::Avoid(p) => p.update(world),
         }
     }
+    // Matched rather than dispatched through `&dyn Planner`: the step asks for the detour several
+    // times, and for `astar` the answer (`None`) then inlines to nothing.
+    #[inline]
     fn detour(&self) -> Option<Detour> {
-        self.get().detour()
+        match self {
+            Self::Astar(p) => p.detour(),
+            Self::Avoid(p) => p.detour(),
+        }
     }
+    #[inline]
     fn stop_at(&self) -> Option<f32> {
-        self.get().stop_at()
+        match self {
+            Self::Astar(p) => p.stop_at(),
+            Self::Avoid(p) => p.stop_at(),
+        }
     }
 }
 
