@@ -48,7 +48,7 @@ impl Inference {
     /// The network with these parameters, in bf16 when `bf16` (see `FastNet::with_precision`).
     fn with_arithmetic(params: Params, threads: usize, bf16: bool) -> Self {
         let mut net = FastNet::with_precision(params.shape, threads, bf16);
-        net.pack_kernels(&params);
+        net.pack_for_inference(&params);
         Self { params, net, frames: Vec::new() }
     }
 
@@ -62,13 +62,13 @@ impl Inference {
     pub fn set_params(&mut self, params: Params) {
         assert_eq!(params.shape, self.net.shape, "set_params: parameters of another network shape");
         self.params = params;
-        self.net.pack_kernels(&self.params);
+        self.net.pack_for_inference(&self.params);
     }
 
     /// Replaces the parameters with a weights file's (as the learner publishes them).
     pub fn load(&mut self, bytes: &[u8]) -> Result<(), WeightsError> {
         self.params = weights::from_safetensors(self.net.shape, bytes, "")?;
-        self.net.pack_kernels(&self.params);
+        self.net.pack_for_inference(&self.params);
         Ok(())
     }
 

@@ -62,6 +62,11 @@ pub struct FastNet {
     dh2: Vec<f32>,
     /// The dense layers' output, transposed, when one image is split across threads.
     dense_t: Vec<f32>,
+    /// The hidden dense layers' weights transposed (`k × n`, row-major: fc1, fc2), laid out for
+    /// inference (`pack_for_inference`; empty otherwise). `gemm` multiplies them without packing a copy; the candle layout (`n × k`)
+    /// made it pack the whole weight matrix at every call, which at an actor's batch of 4 was a
+    /// fifth of its inference (docs/PERFORMANCE.md, "The loop's profile").
+    dense_wt: [Vec<f32>; 2],
     k_major: [Vec<f32>; 3],
     flipped: [Vec<f32>; 3],
     /// Whether the layers that fit (`conv_bf16::fits`) run in bf16 on AMX, and their kernels
@@ -109,6 +114,7 @@ impl FastNet {
             dh1: Vec::new(),
             dh2: Vec::new(),
             dense_t: Vec::new(),
+            dense_wt: Default::default(),
             k_major: Default::default(),
             flipped: Default::default(),
             bf16,
@@ -172,14 +178,29 @@ impl FastNet {
     }
 
     /// Lays out the convolution kernels of `params` for the GEMMs (a copy of their weights):
-    /// what [`Self::forward`] does first. Inference packs once per weights version and then calls
-    /// [`Self::forward_packed`].
+    /// what [`Self::forward`] does first. Inference lays out once per weights version, with
+    /// [`Self::pack_for_inference`], and then calls [`Self::forward_packed`].
     pub fn pack_kernels(&mut self, params: &Params) {
         for (l, g) in self.geoms.iter().enumerate() {
             conv::kernel_k_major(&params.values[CONV_W[l]], g, &mut self.k_major[l]);
             if self.layer_bf16(l) {
                 self.k_packed[l].pack(&self.k_major[l], View::rows(0, 9 * g.cin, g.cout, g.cout));
             }
+        }
+        // Transposes of other weights would be stale: the dense layers read `params` again.
+        self.dense_wt.iter_mut().for_each(Vec::clear);
+    }
+
+    /// [`Self::pack_kernels`], and the hidden dense layers' weights transposed too: worth its copy
+    /// where one weights version serves many forward passes (an actor's), not where every update
+    /// changes them (training, whose batch of 32 amortises `gemm`'s own packing).
+    pub fn pack_for_inference(&mut self, params: &Params) {
+        self.pack_kernels(params);
+        let s = self.shape;
+        // Not the Q head: a few columns, cheap to pack, and on its own layout the same bits as ever.
+        let sizes = [(self.flat(), s.hidden), (s.hidden, s.hidden)];
+        for ((wt, w), (k, n)) in self.dense_wt.iter_mut().zip([FC1_W, FC2_W]).zip(sizes) {
+            transpose(&params.values[w], n, k, wt);
         }
     }
 
@@ -238,9 +259,10 @@ impl FastNet {
         }
         let (h, t, b) = (s.hidden, self.threads, batch);
         let scratch = &mut self.dense_t;
-        dense(&mut self.h1, &self.x, &params.values[FC1_W], &params.values[FC1_B], (b, flat, h), true, t, scratch);
-        dense(&mut self.h2, &self.h1, &params.values[FC2_W], &params.values[FC2_B], (b, h, h), true, t, scratch);
-        dense(&mut self.q, &self.h2, &params.values[Q_W], &params.values[Q_B], (b, h, s.actions), false, t, scratch);
+        let [fc1_t, fc2_t] = &self.dense_wt;
+        dense(&mut self.h1, &self.x, (&params.values[FC1_W], fc1_t), &params.values[FC1_B], (b, flat, h), true, t, scratch);
+        dense(&mut self.h2, &self.h1, (&params.values[FC2_W], fc2_t), &params.values[FC2_B], (b, h, h), true, t, scratch);
+        dense(&mut self.q, &self.h2, (&params.values[Q_W], &[]), &params.values[Q_B], (b, h, s.actions), false, t, scratch);
     }
 
     /// Gradients of every parameter (written into `grads`) given `dq`, the loss's gradient with
@@ -428,13 +450,15 @@ fn weight_and_bias(grads: &mut Params, w: usize, b: usize) -> (&mut [f32], &mut 
     (&mut head[w], &mut tail[0])
 }
 
-/// `out = act(input · Wᵀ + bias)` for a candle `Linear` weight `W` (`n × k`) and a batch of `b`;
-/// a batch smaller than the thread count is split by units (`scratch` holds the bands' output).
+/// `out = act(input · Wᵀ + bias)` for a candle `Linear` weight `W` (`n × k`), given with its
+/// transpose `wt` (`k × n`; empty: not laid out, `W` is used), and a batch of `b`; a batch
+/// smaller than the thread count is split by units (`scratch` holds the bands' output), which
+/// reads `W`'s rows.
 #[allow(clippy::too_many_arguments)]
 fn dense(
     out: &mut [f32],
     input: &[f32],
-    w: &[f32],
+    (w, wt): (&[f32], &[f32]),
     bias: &[f32],
     (b, k, n): (usize, usize, usize),
     relu: bool,
@@ -443,14 +467,36 @@ fn dense(
 ) {
     if b < threads {
         bands::dense(out, input, w, b, k, n, scratch, threads);
-    } else {
+    } else if wt.is_empty() || b == 1 {
+        // One image: `gemm` takes its matrix-vector path, which reads `W`'s rows in place (no
+        // packing either way) and sums in the order it always has.
         matmul(out, View::rows(0, b, n, n), false, input, View::rows(0, b, k, k), w, View::rows(0, n, k, k).t(), threads);
+    } else {
+        // `gemm` computes a row-major `out` as outᵀ = W · inputᵀ; with `wt` given, that left
+        // matrix W has contiguous columns, which it reads in place instead of packing them.
+        matmul(out, View::rows(0, b, n, n), false, input, View::rows(0, b, k, k), wt, View::rows(0, k, n, n), threads);
     }
     for row in out.chunks_exact_mut(n) {
         for (o, &bv) in row.iter_mut().zip(bias) {
             *o += bv;
             if relu {
                 *o = o.max(0.0);
+            }
+        }
+    }
+}
+
+/// `wt = wᵀ` for `w` of `rows × cols` (row-major), in tiles that stay in cache.
+fn transpose(w: &[f32], rows: usize, cols: usize, wt: &mut Vec<f32>) {
+    const TILE: usize = 32;
+    assert_eq!(w.len(), rows * cols, "transpose: {} values for {rows} × {cols}", w.len());
+    wt.resize(rows * cols, 0.0);
+    for r0 in (0..rows).step_by(TILE) {
+        for c0 in (0..cols).step_by(TILE) {
+            for r in r0..(r0 + TILE).min(rows) {
+                for c in c0..(c0 + TILE).min(cols) {
+                    wt[c * rows + r] = w[r * cols + c];
+                }
             }
         }
     }
@@ -476,6 +522,68 @@ fn back_through(out: &mut [f32], upstream: &[f32], w: &[f32], b: usize, n: usize
     if let Some(act) = relu_out {
         for (o, &a) in out.iter_mut().zip(act) {
             *o *= f32::from(u8::from(a > 0.0));
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn noise(seed: u32) -> impl FnMut() -> f32 {
+        let mut seed = seed | 1;
+        move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 17;
+            seed ^= seed << 5;
+            f32::from(u16::try_from(seed >> 16).unwrap()) / 32768.0 - 1.0
+        }
+    }
+
+    /// `input · Wᵀ` the old way (candle's `n × k` as the right matrix) and the new (its
+    /// transpose), on one thread.
+    fn both_ways(b: usize, k: usize, n: usize, seed: u32) -> (Vec<f32>, Vec<f32>) {
+        let mut next = noise(seed);
+        let w: Vec<f32> = (0..n * k).map(|_| next()).collect();
+        let input: Vec<f32> = (0..b * k).map(|_| next()).collect();
+        let mut old = vec![0.0; b * n];
+        matmul(&mut old, View::rows(0, b, n, n), false, &input, View::rows(0, b, k, k), &w, View::rows(0, n, k, k).t(), 1);
+        let mut wt = Vec::new();
+        transpose(&w, n, k, &mut wt);
+        assert_eq!(wt[3 * n + 1], w[k + 3], "wt is wᵀ");
+        let mut new = vec![0.0; b * n];
+        matmul(&mut new, View::rows(0, b, n, n), false, &input, View::rows(0, b, k, k), &wt, View::rows(0, k, n, n), 1);
+        (old, new)
+    }
+
+    /// For the presets' hidden layers the transposed weights give the same bits as the candle
+    /// layout did (the same products summed in the same order; only `gemm`'s packing copy is
+    /// gone), at the batches that use them (2 and more: an actor's 4, the learner's 32; one image
+    /// keeps `W`). So no run of a preset changed with the layout.
+    #[test]
+    fn the_presets_hidden_layers_on_transposed_weights_are_bit_identical_to_the_candle_layout() {
+        for (name, _) in crate::presets::PRESETS {
+            let shape = crate::config::RunConfig::preset(name).unwrap().net_shape();
+            for (k, n) in [(shape.flat(), shape.hidden), (shape.hidden, shape.hidden)] {
+                for b in [2, 3, 4, 8, 32] {
+                    let (old, new) = both_ways(b, k, n, 7);
+                    let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+                    assert_eq!(bits(&old), bits(&new), "{name}: b {b}, k {k}, n {n}");
+                }
+            }
+        }
+    }
+
+    /// Other shapes may round differently in the last bits (`gemm` picks another kernel for a
+    /// left matrix it does not pack), never by more than the f32 sums' own error.
+    #[test]
+    fn any_shape_on_transposed_weights_agrees_within_rounding() {
+        for (b, k, n) in [(5, 37, 19), (4, 100, 48), (2, 64, 40), (3, 300, 17)] {
+            let (old, new) = both_ways(b, k, n, 11);
+            for (o, w) in old.iter().zip(&new) {
+                // Inputs in [-1, 1): a sum of k products is off by at most ~k·ε in each order.
+                assert!((o - w).abs() <= 2.0 * k as f32 * f32::EPSILON, "b {b}, k {k}, n {n}: {o} vs {w}");
+            }
         }
     }
 }
