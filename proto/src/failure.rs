@@ -48,7 +48,9 @@ pub fn describe(err: &(dyn Error + 'static), attempt: &Attempt<'_>) -> String {
     if text.contains("connection refused") {
         return format!("connection refused: nothing listens there ({detail})");
     }
-    if tls && (text.contains("eof") || text.contains("reset") || text.contains("closed") || text.contains("broken pipe")) {
+    // "end of file": an `io::ErrorKind::UnexpectedEof`'s own text, which names no "eof".
+    let ended = ["eof", "end of file", "reset", "closed", "broken pipe"].iter().any(|w| text.contains(w));
+    if tls && ended {
         return format!(
             "the server closed the connection during the TLS handshake: it may serve plaintext (then connect with http:// and \
              no --tls-ca) ({detail})"
@@ -57,7 +59,7 @@ pub fn describe(err: &(dyn Error + 'static), attempt: &Attempt<'_>) -> String {
     if tls && text.contains("h2 was not negotiated") {
         return "the server's TLS does not offer HTTP/2 (ALPN h2): it is not a gRPC server".into();
     }
-    if !tls && ["frame", "reset", "closed", "broken pipe", "protocol", "eof", "not http", "malformed"].iter().any(|w| text.contains(w)) {
+    if !tls && (ended || ["frame", "protocol", "not http", "malformed"].iter().any(|w| text.contains(w))) {
         return format!(
             "the server ended the connection without speaking HTTP/2 in clear: it may serve TLS (then connect with \
              https://HOST:PORT and --tls-ca FILE) ({detail})"
@@ -124,5 +126,29 @@ fn describe_rustls(e: &rustls::Error, host: &str) -> String {
             format!("the server did not answer in TLS ({e}): it may serve plaintext (then connect with http:// and no --tls-ca)")
         }
         other => format!("TLS: {other}"),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn attempt(tls: bool) -> Attempt<'static> {
+        Attempt { tls, client_cert: false, host: "learner", connected: false }
+    }
+
+    /// A connection that ends under the first exchange is the other side speaking the other
+    /// protocol, however the end is worded: an `UnexpectedEof` says "unexpected end of file".
+    #[test]
+    fn a_connection_ended_at_once_suggests_the_other_protocol_whatever_its_wording() {
+        for kind in [std::io::ErrorKind::UnexpectedEof, std::io::ErrorKind::ConnectionReset, std::io::ErrorKind::BrokenPipe] {
+            let err = std::io::Error::from(kind);
+            let plain = describe(&err, &attempt(false));
+            assert!(plain.contains("it may serve TLS"), "{kind:?}: {plain}");
+            let tls = describe(&err, &attempt(true));
+            assert!(tls.contains("it may serve plaintext"), "{kind:?}: {tls}");
+        }
+        let other = std::io::Error::other("something else entirely");
+        assert_eq!(describe(&other, &attempt(false)), "something else entirely");
     }
 }
