@@ -31,16 +31,8 @@ fn avoid_config(kind: HazardKind) -> EnvConfig {
     EnvConfig { planner: PlannerKind::AstarAvoid, ..config(kind) }
 }
 
-/// The kinds placed on random routes.
-const PLACED: [HazardKind; 7] = [
-    HazardKind::StalledCar,
-    HazardKind::PedestrianCrossing,
-    HazardKind::CutIn,
-    HazardKind::HardBrake,
-    HazardKind::Construction,
-    HazardKind::OppositeOvertaker,
-    HazardKind::JunctionRunner,
-];
+/// The kinds placed on random routes: all of them.
+const PLACED: [HazardKind; 7] = HazardKind::ALL;
 
 /// How each of seeds 0..n ends: (collision, arrived).
 fn outcomes(cfg: &EnvConfig, expert: &Expert, n: u64) -> Vec<(Option<CollisionKind>, bool)> {

@@ -52,16 +52,8 @@ impl Suite {
     }
 }
 
-/// The hazard kinds the suite drives.
-pub const SUITE_KINDS: [HazardKind; 7] = [
-    HazardKind::StalledCar,
-    HazardKind::PedestrianCrossing,
-    HazardKind::CutIn,
-    HazardKind::HardBrake,
-    HazardKind::Construction,
-    HazardKind::OppositeOvertaker,
-    HazardKind::JunctionRunner,
-];
+/// The hazard kinds the suite drives: every kind, one scenario each.
+pub const SUITE_KINDS: [HazardKind; 7] = HazardKind::ALL;
 
 /// Random routes of hazard scenarios, metres: long enough for a hazard 45–75 m in and room after.
 const HAZARD_ROUTE_LENGTH: (f32, f32) = (120.0, 220.0);
