@@ -63,9 +63,10 @@ pub struct FastNet {
     /// The dense layers' output, transposed, when one image is split across threads.
     dense_t: Vec<f32>,
     /// The hidden dense layers' weights transposed (`k × n`, row-major: fc1, fc2), laid out for
-    /// inference (`pack_for_inference`; empty otherwise). `gemm` multiplies them without packing a copy; the candle layout (`n × k`)
-    /// made it pack the whole weight matrix at every call, which at an actor's batch of 4 was a
-    /// fifth of its inference (docs/PERFORMANCE.md, "The loop's profile").
+    /// inference (`pack_for_inference`; empty otherwise). `gemm` multiplies them without packing
+    /// a copy; the candle layout (`n × k`) made it pack the whole weight matrix at every call,
+    /// which at an actor's batch of 4 was a fifth of its inference (docs/PERFORMANCE.md, "README's
+    /// `actor train`: where the cores go").
     dense_wt: [Vec<f32>; 2],
     k_major: [Vec<f32>; 3],
     flipped: [Vec<f32>; 3],

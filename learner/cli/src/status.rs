@@ -26,12 +26,12 @@ pub fn addr_from_run_dir(run_dir: &Path) -> anyhow::Result<String> {
 /// The status as a JSON value (the `--json` output).
 #[must_use]
 pub fn to_json(s: &pb::StatusResponse) -> serde_json::Value {
-    StatusReport::from(s).to_json()
+    StatusReport::from(s.clone()).to_json()
 }
 
 /// Prints the status readably.
 pub fn print_table(s: &pb::StatusResponse) {
-    print!("{}", table(&StatusReport::from(s)));
+    print!("{}", table(&StatusReport::from(s.clone())));
 }
 
 /// The readable status. Destructured without `..`: a field added to the report is placed in the
@@ -221,7 +221,7 @@ mod tests {
             env_steps: 9025,
             run_secs: 9026.0,
         };
-        let text = table(&StatusReport::from(&s));
+        let text = table(&StatusReport::from(s));
         for n in (9001..=9026).chain(9101..=9109) {
             assert!(text.contains(&n.to_string()), "{n} is missing from the table:\n{text}");
         }

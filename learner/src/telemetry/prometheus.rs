@@ -1,7 +1,8 @@
 //! The learner's metrics for Prometheus, encoded by `prometheus-client` (the Prometheus project's
 //! Rust client) and served at `/metrics` on `--metrics-listen` by axum — the HTTP stack tonic
 //! already compiles in. Values are read from the shared state at each scrape (a [`Collector`]), so
-//! nothing is kept twice; which fields, under which names, is `status_report.rs`'s. Dashboards (`deploy/grafana/`) and alerts use these names.
+//! nothing is kept twice; which fields, under which names, `status_report.rs` says. Dashboards
+//! (`deploy/grafana/`) and alerts use these names.
 
 use std::sync::Arc;
 
@@ -15,7 +16,7 @@ use prometheus_client::metrics::gauge::ConstGauge;
 use prometheus_client::registry::Registry;
 
 use crate::state::Shared;
-use crate::telemetry::status_report::{ActorReport, EXPORTED, EXPORTED_PER_ACTOR, MetricKind, StatusReport};
+use crate::telemetry::status_report::{ActorReport, EXPORTED, EXPORTED_PER_ACTOR, StatusReport};
 
 /// Reads the learner's state at every scrape.
 #[derive(Debug)]
@@ -25,31 +26,24 @@ struct LearnerCollector(Arc<Shared>);
 /// integer, anything else as a float, `null` as NaN.
 fn encode_value(
     family: prometheus_client::encoding::MetricEncoder<'_>,
-    kind: MetricKind,
+    kind: MetricType,
     value: &serde_json::Value,
 ) -> Result<(), std::fmt::Error> {
     match (kind, value.as_u64()) {
-        (MetricKind::Counter, Some(n)) => ConstCounter::new(n).encode(family),
-        (MetricKind::Counter, None) => ConstCounter::new(value.as_f64().unwrap_or(f64::NAN)).encode(family),
-        (MetricKind::Gauge, Some(n)) => ConstGauge::new(i64::try_from(n).unwrap_or(i64::MAX)).encode(family),
-        (MetricKind::Gauge, None) => ConstGauge::new(value.as_f64().unwrap_or(f64::NAN)).encode(family),
-    }
-}
-
-fn metric_type(kind: MetricKind) -> MetricType {
-    match kind {
-        MetricKind::Counter => MetricType::Counter,
-        MetricKind::Gauge => MetricType::Gauge,
+        (MetricType::Counter, Some(n)) => ConstCounter::new(n).encode(family),
+        (MetricType::Counter, None) => ConstCounter::new(value.as_f64().unwrap_or(f64::NAN)).encode(family),
+        (_, Some(n)) => ConstGauge::new(i64::try_from(n).unwrap_or(i64::MAX)).encode(family),
+        (_, None) => ConstGauge::new(value.as_f64().unwrap_or(f64::NAN)).encode(family),
     }
 }
 
 impl Collector for LearnerCollector {
     fn encode(&self, mut enc: DescriptorEncoder) -> Result<(), std::fmt::Error> {
-        let report = StatusReport::from(&crate::service::status(&self.0));
+        let report = StatusReport::from(crate::service::status(&self.0));
         let json = report.to_json();
         for m in EXPORTED {
             let value = json.pointer(m.field).expect("EXPORTED names fields of the report (tested)");
-            encode_value(enc.encode_descriptor(m.name, m.help, None, metric_type(m.kind))?, m.kind, value)?;
+            encode_value(enc.encode_descriptor(m.name, m.help, None, m.kind)?, m.kind, value)?;
         }
 
         // Derived from the actors: how many are connected and how far behind they are.
@@ -71,7 +65,7 @@ impl Collector for LearnerCollector {
 
         // Per connected actor, labelled with its name.
         for m in EXPORTED_PER_ACTOR {
-            let mut family = enc.encode_descriptor(m.name, m.help, None, metric_type(m.kind))?;
+            let mut family = enc.encode_descriptor(m.name, m.help, None, m.kind)?;
             for (a, value) in report.actors.iter().zip(json["actors"].as_array().into_iter().flatten()) {
                 if a.connected {
                     let value = value.pointer(m.field).expect("EXPORTED_PER_ACTOR names fields of an actor (tested)");

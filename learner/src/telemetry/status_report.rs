@@ -7,6 +7,7 @@
 //! destructures the report the same way, and a test fails unless every number of the report is
 //! either exported to Prometheus or listed in [`NOT_EXPORTED`] with the reason.
 
+use prometheus_client::metrics::MetricType;
 use proto::v1 as pb;
 use serde::Serialize;
 
@@ -95,8 +96,8 @@ pub struct ActorReport {
     pub epsilon: f32,
 }
 
-impl From<&pb::StatusResponse> for StatusReport {
-    fn from(s: &pb::StatusResponse) -> Self {
+impl From<pb::StatusResponse> for StatusReport {
+    fn from(s: pb::StatusResponse) -> Self {
         // No `..`: a field added to the wire message must be placed here before this compiles.
         let pb::StatusResponse {
             run_id,
@@ -131,7 +132,7 @@ impl From<&pb::StatusResponse> for StatusReport {
             recent_refusal,
             env_steps,
             run_secs,
-        } = s.clone();
+        } = s;
         let pb::EpisodeStats { window, mean_return, completion_rate, collision_rate, episodes_total } = episodes.unwrap_or_default();
         let finite = |x: f64| x.is_finite().then_some(x);
         Self {
@@ -168,13 +169,13 @@ impl From<&pb::StatusResponse> for StatusReport {
                 checkpoint_error,
                 recent_refusal,
             },
-            actors: actors.iter().map(ActorReport::from).collect(),
+            actors: actors.into_iter().map(ActorReport::from).collect(),
         }
     }
 }
 
-impl From<&pb::ActorStatus> for ActorReport {
-    fn from(a: &pb::ActorStatus) -> Self {
+impl From<pb::ActorStatus> for ActorReport {
+    fn from(a: pb::ActorStatus) -> Self {
         let pb::ActorStatus {
             actor_id,
             name,
@@ -189,7 +190,7 @@ impl From<&pb::ActorStatus> for ActorReport {
             registrations,
             dropped_steps,
             epsilon,
-        } = a.clone();
+        } = a;
         Self {
             actor_id,
             name,
@@ -216,14 +217,6 @@ impl StatusReport {
     }
 }
 
-/// A Prometheus metric's type.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum MetricKind {
-    /// Only grows (the encoder adds `_total` to its name).
-    Counter,
-    Gauge,
-}
-
 /// A field of the report exported to Prometheus under a name of its own (the names predate the
 /// report and dashboards use them).
 #[derive(Debug, Clone, Copy)]
@@ -233,15 +226,16 @@ pub struct Exported {
     pub field: &'static str,
     pub name: &'static str,
     pub help: &'static str,
-    pub kind: MetricKind,
+    /// `Counter` (the encoder adds `_total` to its name) or `Gauge`.
+    pub kind: MetricType,
 }
 
 const fn counter(field: &'static str, name: &'static str, help: &'static str) -> Exported {
-    Exported { field, name, help, kind: MetricKind::Counter }
+    Exported { field, name, help, kind: MetricType::Counter }
 }
 
 const fn gauge(field: &'static str, name: &'static str, help: &'static str) -> Exported {
-    Exported { field, name, help, kind: MetricKind::Gauge }
+    Exported { field, name, help, kind: MetricType::Gauge }
 }
 
 /// The run's metrics, in the order of the exposition.
@@ -324,7 +318,7 @@ mod tests {
             episodes: Some(pb::EpisodeStats { episodes_total: 3, ..Default::default() }),
             ..Default::default()
         };
-        StatusReport::from(&wire)
+        StatusReport::from(wire)
     }
 
     /// The JSON pointers of every leaf under `value`, not descending into `/actors`.
@@ -368,7 +362,7 @@ mod tests {
 
     #[test]
     fn not_a_number_on_the_wire_is_null_in_json() {
-        let r = StatusReport::from(&pb::StatusResponse { loss: f64::NAN, mean_q: f64::INFINITY, ..Default::default() });
+        let r = StatusReport::from(pb::StatusResponse { loss: f64::NAN, mean_q: f64::INFINITY, ..Default::default() });
         let json = r.to_json();
         assert!(json["loss"].is_null() && json["mean_q"].is_null(), "{json}");
         assert_eq!(full().to_json()["loss"], 0.25);
