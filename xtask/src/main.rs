@@ -29,7 +29,7 @@ enum Step {
     Clippy,
     /// The fast tests, README's command: `cargo test --workspace --locked` (slow tests skipped).
     Test,
-    /// The slow tests alone (chaos, learning): `cargo test` of each with HD_SLOW_TESTS=1.
+    /// The slow tests alone (those xtask/src/slow.rs lists): `cargo test` of each with HD_SLOW_TESTS=1.
     Slow,
     /// Instruction counts of the hot paths (scripts/bench-check.sh; installs valgrind if missing).
     BenchCheck,

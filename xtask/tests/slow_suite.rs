@@ -28,9 +28,11 @@ fn main() -> ExitCode {
     if slow::gate::enabled() {
         println!("\nThe slow tests ran too ({}=1).", slow::VAR);
     } else {
+        let names: Vec<&str> = slow::SUITE.iter().map(|t| t.target).collect();
         println!(
-            "\n{tests} slow tests (chaos, learning) were skipped, each saying so above: \
-             run them with `cargo xtask slow`; all of CI with `cargo xtask ci`."
+            "\n{tests} slow tests ({}) were skipped, each saying so above: \
+             run them with `cargo xtask slow`; all of CI with `cargo xtask ci`.",
+            names.join(", ")
         );
     }
     ExitCode::SUCCESS
