@@ -8,6 +8,7 @@
 
 use super::conv::ConvGeom;
 use super::conv_bf16::Operands;
+use super::conv_direct;
 use super::gemm::{View, matmul};
 use super::pool::{self, Strided};
 
@@ -86,6 +87,32 @@ fn conv_pool_lines(
     let (first, end) = (y0 * g.pw(), (y1 * g.pw()).min(g.rows()));
     ops.forward_rows(g, first, &mut pre[..(end - first) * g.cout], patches);
     pool::forward(pre, bias, y1 - y0, g.w, dst, to);
+}
+
+/// The first layer of one padded image computed directly and pooled into `dst` through `to`
+/// (`conv_direct::forward_pool`; the next layer's padded input), band by band of lines on up to
+/// `threads` threads. Each output is computed as on one thread, so the bits do not depend on
+/// the bands.
+#[allow(clippy::too_many_arguments)]
+pub fn direct_pool(input: &[f32], kernel: &[f32], bias: &[f32], g: &ConvGeom, dst: &mut [f32], to: Strided, threads: usize) {
+    assert!(to.chan == 1 && to.row >= to.col * (g.w / 2), "direct_pool: a destination whose lines overlap: {to:?}");
+    let line_to = Strided { base: 0, ..to };
+    let dst = &mut dst[to.base..];
+    let bands = threads.min(g.h / 2).max(1);
+    if bands == 1 {
+        conv_direct::forward_pool(input, kernel, bias, g, (0, g.h), dst, line_to);
+        return;
+    }
+    rayon::scope(|scope| {
+        let mut dst_rest = dst;
+        for band in 0..bands {
+            let (y0, y1) = line_band(g.h, bands, band);
+            let (dst_band, rest) = std::mem::take(&mut dst_rest).split_at_mut((y1 / 2 - y0 / 2) * to.row);
+            dst_rest = rest;
+            let mut work = move || conv_direct::forward_pool(input, kernel, bias, g, (y0, y1), dst_band, line_to);
+            if band + 1 == bands { work() } else { scope.spawn(move |_| work()) }
+        }
+    });
 }
 
 /// The convolution of one padded image (`conv::forward`) with its output rows split across up to

@@ -9,6 +9,7 @@
 //! - [`bf16`]: bfloat16 rounding and conversion.
 //! - [`conv`]: 3×3 convolution forward, kernel gradient and input gradient of one image.
 //! - [`conv_bf16`]: the wide layers' convolution on the AMX bf16 kernel.
+//! - [`conv_direct`]: the first layer computed directly, fused with bias, ReLU and pooling.
 //! - [`pool`]: fused bias + ReLU + 2×2 average pooling and its backward pass.
 //! - [`model`]: the whole network, forward and backward, over a batch.
 //! - [`bands`]: one image's layers split across threads (the actors' small batches).
@@ -21,6 +22,7 @@ pub mod bands;
 pub mod bf16;
 pub mod conv;
 pub mod conv_bf16;
+pub mod conv_direct;
 pub mod gemm;
 pub mod inference;
 pub mod model;

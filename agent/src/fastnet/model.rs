@@ -12,6 +12,7 @@ use super::bands;
 use super::bf16;
 use super::conv::{self, ConvGeom};
 use super::conv_bf16::{self, Operands};
+use super::conv_direct;
 use super::gemm::{View, matmul};
 use super::params::{CONV_B, CONV_W, FC1_B, FC1_W, FC2_B, FC2_W, Params, Q_B, Q_W};
 use super::pool::{self, Strided};
@@ -75,6 +76,8 @@ pub struct FastNet {
     bf16: bool,
     k_packed: [PackedB; 3],
     flipped_packed: [PackedB; 3],
+    /// The first layer's kernel grouped for `conv_direct` (empty where the layer is a GEMM).
+    k_direct: Vec<f32>,
 }
 
 impl FastNet {
@@ -121,7 +124,14 @@ impl FastNet {
             bf16,
             k_packed: Default::default(),
             flipped_packed: Default::default(),
+            k_direct: Vec::new(),
         }
+    }
+
+    /// Whether layer `l` is computed directly, fused with its pooling (`conv_direct`): the first
+    /// layer, which needs no input gradient.
+    fn layer_direct(&self, l: usize) -> bool {
+        l == 0 && conv_direct::fits(&self.geoms[l])
     }
 
     /// Whether layer `l` runs on the bf16 kernel.
@@ -147,14 +157,20 @@ impl FastNet {
                 let mut part = Part { start, images, ..Part::default() };
                 for (l, g) in self.geoms.iter().enumerate() {
                     part.input[l] = vec![0.0; images * g.padded_in()];
-                    part.pre[l] = vec![0.0; images * g.out_len()];
+                    // A direct layer's pre-activations are recomputed, never kept.
+                    part.pre[l] = if l == 0 && conv_direct::fits(g) { Vec::new() } else { vec![0.0; images * g.out_len()] };
                     part.dk[l] = vec![0.0; 9 * g.cin * g.cout];
                     part.db[l] = vec![0.0; g.cout];
                     if self.bf16 && conv_bf16::fits(g) {
                         part.input_bf16[l] = vec![0; images * g.padded_in()];
                     }
                 }
-                part.patches = vec![0.0; self.geoms.iter().map(|g| g.patches_len().max(g.transposed().patches_len())).max().unwrap_or(0)];
+                // Patches of the layers that gather them for a GEMM (not a direct first layer).
+                let gathering = self.geoms.iter().enumerate().map(|(l, g)| {
+                    let forward = if l == 0 && conv_direct::fits(g) { 0 } else { g.patches_len() };
+                    forward.max(g.transposed().patches_len())
+                });
+                part.patches = vec![0.0; gathering.max().unwrap_or(0)];
                 part
             })
             .collect();
@@ -186,6 +202,9 @@ impl FastNet {
             conv::kernel_k_major(&params.values[CONV_W[l]], g, &mut self.k_major[l]);
             if self.layer_bf16(l) {
                 self.k_packed[l].pack(&self.k_major[l], View::rows(0, 9 * g.cin, g.cout, g.cout));
+            }
+            if l == 0 && conv_direct::fits(g) {
+                conv_direct::pack(&self.k_major[l], g, &mut self.k_direct);
             }
         }
         // Transposes of other weights would be stale: the dense layers read `params` again.
@@ -242,7 +261,12 @@ impl FastNet {
         let conv_flat = flat - s.scalars;
         // One part: the image's layers are split across the threads; several: one thread each.
         let bands = if self.parts.len() == 1 { self.threads } else { 1 };
-        let kernels = Kernels { k_major: &self.k_major, packed: &self.k_packed, bf16: [0, 1, 2].map(|l| self.layer_bf16(l)) };
+        let kernels = Kernels {
+            k_major: &self.k_major,
+            packed: &self.k_packed,
+            bf16: [0, 1, 2].map(|l| self.layer_bf16(l)),
+            direct: self.layer_direct(0).then_some(&self.k_direct[..]),
+        };
         let geoms = &self.geoms;
         let n = self.parts.len();
         let mut x_rest = &mut self.x[..];
@@ -284,6 +308,12 @@ impl FastNet {
         dense_grads(&self.dh1, &self.x, b, h, flat, weight_and_bias(grads, FC1_W, FC1_B), t);
         back_through(&mut self.dx, &self.dh1, &params.values[FC1_W], b, h, flat, None, t);
 
+        if self.layer_direct(0) {
+            // The forward pass laid it out, but maybe from other parameters (a target network's).
+            let g = &self.geoms[0];
+            conv::kernel_k_major(&params.values[CONV_W[0]], g, &mut self.k_major[0]);
+            conv_direct::pack(&self.k_major[0], g, &mut self.k_direct);
+        }
         for (l, g) in self.geoms.iter().enumerate().skip(1) {
             conv::kernel_flipped(&params.values[CONV_W[l]], g, &mut self.flipped[l]);
             if self.bf16 && conv_bf16::fits(&g.transposed()) {
@@ -295,6 +325,7 @@ impl FastNet {
             k_major: &self.flipped,
             packed: &self.flipped_packed,
             bf16: [0, 1, 2].map(|l| self.bf16 && l > 0 && conv_bf16::fits(&self.geoms[l].transposed())),
+            direct: self.layer_direct(0).then_some(&self.k_direct[..]),
         };
         let bf16_grads = [0, 1, 2].map(|l| self.layer_bf16(l));
         let (geoms, dx) = (&self.geoms, &self.dx);
@@ -347,9 +378,18 @@ impl Part {
             }
             for (l, g) in geoms.iter().enumerate() {
                 let (pi, po) = (g.padded_in(), g.out_len());
-                let pre = &mut self.pre[l][img * po..(img + 1) * po];
                 let (inputs, next_inputs) = self.input.split_at_mut(l + 1);
                 let input = &inputs[l][img * pi..(img + 1) * pi];
+                let bias = &params.values[CONV_B[l]];
+                if l == 0
+                    && let Some(kernel) = kernels.direct
+                {
+                    let next = &geoms[1];
+                    let dst = &mut next_inputs[0][img * next.padded_in()..(img + 1) * next.padded_in()];
+                    bands::direct_pool(input, kernel, bias, g, dst, Strided::padded(next.w, next.cin), bands);
+                    continue;
+                }
+                let pre = &mut self.pre[l][img * po..(img + 1) * po];
                 let ops = if kernels.bf16[l] {
                     let input_bf16 = &mut self.input_bf16[l][img * pi..(img + 1) * pi];
                     bf16::convert(input, input_bf16);
@@ -357,7 +397,6 @@ impl Part {
                 } else {
                     Operands::F32 { input, kernel: &kernels.k_major[l] }
                 };
-                let bias = &params.values[CONV_B[l]];
                 if l < 2 {
                     let next = &geoms[l + 1];
                     let dst = &mut next_inputs[0][img * next.padded_in()..(img + 1) * next.padded_in()];
@@ -388,6 +427,9 @@ impl Part {
         for (l, g) in geoms.iter().enumerate() {
             self.dk[l].fill(0.0);
             self.db[l].fill(0.0);
+            if l == 0 && flipped.direct.is_some() {
+                continue;
+            }
             if self.grad_padded[l].len() != self.images * g.padded_out() {
                 self.grad_padded[l] = vec![0.0; self.images * g.padded_out()];
             }
@@ -399,6 +441,17 @@ impl Part {
             for l in (0..3).rev() {
                 let g = &geoms[l];
                 let (pi, po, pg) = (g.padded_in(), g.out_len(), g.padded_out());
+                if l == 0
+                    && let Some(kernel) = flipped.direct
+                {
+                    let next = &geoms[1];
+                    let len = next.in_grad_len();
+                    let upstream = &self.in_grad[1][img * len..(img + 1) * len];
+                    let input = &self.input[0][img * pi..(img + 1) * pi];
+                    let from = Strided::conv_out(next.w, next.cin);
+                    conv_direct::backward(input, kernel, &params.values[CONV_B[0]], g, upstream, from, &mut self.dk[0], &mut self.db[0]);
+                    continue;
+                }
                 let pre = &self.pre[l][img * po..(img + 1) * po];
                 let grad_padded = &mut self.grad_padded[l][img * pg..(img + 1) * pg];
                 let bias = &params.values[CONV_B[l]];
@@ -436,12 +489,14 @@ impl Part {
     }
 }
 
-/// Each layer's kernels in both layouts and which one it runs on.
+/// Each layer's kernels in both layouts and which one it runs on; the first layer's grouped
+/// kernel where it is computed directly (`conv_direct`).
 #[derive(Debug, Clone, Copy)]
 struct Kernels<'a> {
     k_major: &'a [Vec<f32>; 3],
     packed: &'a [PackedB; 3],
     bf16: [bool; 3],
+    direct: Option<&'a [f32]>,
 }
 
 /// A layer's weight and bias gradients (bias right after weight in the parameter order).

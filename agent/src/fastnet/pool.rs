@@ -33,7 +33,7 @@ impl Strided {
         Self { base: 0, row: w, col: 1, chan: h * w }
     }
 
-    fn at(&self, i: usize, j: usize) -> usize {
+    pub(super) fn at(&self, i: usize, j: usize) -> usize {
         self.base + i * self.row + j * self.col
     }
 }
