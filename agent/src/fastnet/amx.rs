@@ -131,7 +131,8 @@ pub struct PackedB {
 }
 
 impl PackedB {
-    /// Packs the `k × n` f32 matrix `src` (read through `v`, any strides) rounded to bf16.
+    /// Packs the `k × n` f32 matrix `src` (read through `v`, any strides) rounded to bf16 (a NaN
+    /// in a contiguous source may come out infinite: `bf16::from_f32_finite`).
     ///
     /// # Panics
     /// If the view leaves `src`.
@@ -156,12 +157,12 @@ impl PackedB {
                 if 2 * pair + 1 < k {
                     let odd = &src[v.offset + (2 * pair + 1) * v.row_stride..][..n];
                     for ((o, &e), &d) in out.chunks_exact_mut(2).zip(even).zip(odd) {
-                        o[0] = super::bf16::from_f32(e);
-                        o[1] = super::bf16::from_f32(d);
+                        o[0] = super::bf16::from_f32_finite(e);
+                        o[1] = super::bf16::from_f32_finite(d);
                     }
                 } else {
                     for (o, &e) in out.chunks_exact_mut(2).zip(even) {
-                        o[0] = super::bf16::from_f32(e);
+                        o[0] = super::bf16::from_f32_finite(e);
                     }
                 }
             }

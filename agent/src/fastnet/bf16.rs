@@ -20,17 +20,24 @@ pub fn to_f32(b: u16) -> f32 {
     f32::from_bits(u32::from(b) << 16)
 }
 
-/// `dst[i] = bf16(src[i])`.
+/// [`from_f32`] for every value but NaN, branch-free, so that loops of it vectorise: a NaN's
+/// rounding may carry into the exponent, which keeps it a NaN or makes it infinite; the network
+/// never holds NaNs (gradients are checked).
+#[must_use]
+#[inline]
+pub fn from_f32_finite(x: f32) -> u16 {
+    let bits = x.to_bits();
+    (bits.wrapping_add(0x7FFF + ((bits >> 16) & 1)) >> 16) as u16
+}
+
+/// `dst[i] = bf16(src[i])` ([`from_f32_finite`]).
 ///
 /// # Panics
 /// If the lengths differ.
 pub fn convert(src: &[f32], dst: &mut [u16]) {
     assert_eq!(src.len(), dst.len(), "bf16::convert: {} values into {}", src.len(), dst.len());
-    // Branch-free, so that it vectorises: a NaN's rounding may carry into the exponent, which
-    // keeps it a NaN or makes it infinite; the network never holds NaNs (gradients are checked).
     for (d, &x) in dst.iter_mut().zip(src) {
-        let bits = x.to_bits();
-        *d = (bits.wrapping_add(0x7FFF + ((bits >> 16) & 1)) >> 16) as u16;
+        *d = from_f32_finite(x);
     }
 }
 

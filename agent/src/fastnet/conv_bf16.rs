@@ -58,12 +58,17 @@ pub fn plane(g: &ConvGeom) -> usize {
 
 /// The padded image `input` (f32, pixel-major) as bf16 channel planes of [`plane`] values.
 pub fn transpose_padded(input: &[f32], g: &ConvGeom, out: &mut Vec<u16>) {
+    // Blocks of pixels whose channels fit in L1, so that each plane is written a run at a time.
+    const PIXELS: usize = 16;
     let (c, p) = (g.cin, plane(g));
     out.clear();
     out.resize(c * p, 0);
-    for (px, values) in input[..g.padded_in()].chunks_exact(c).enumerate() {
-        for (ch, &v) in values.iter().enumerate() {
-            out[ch * p + px] = bf16::from_f32(v);
+    for (block, values) in input[..g.padded_in()].chunks(PIXELS * c).enumerate() {
+        let n = values.len() / c;
+        for (ch, plane) in out.chunks_exact_mut(p).enumerate() {
+            for (d, px) in plane[block * PIXELS..][..n].iter_mut().zip(values.chunks_exact(c)) {
+                *d = bf16::from_f32_finite(px[ch]);
+            }
         }
     }
 }

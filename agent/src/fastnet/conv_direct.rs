@@ -93,7 +93,16 @@ pub fn forward_pool(input: &[f32], kernel: &[f32], bias: &[f32], g: &ConvGeom, (
 /// # Panics
 /// If the slices do not match the geometry.
 #[allow(clippy::too_many_arguments)]
-pub fn backward(input: &[f32], kernel: &[f32], bias: &[f32], g: &ConvGeom, upstream: &[f32], from: Strided, dk: &mut [f32], db: &mut [f32]) {
+pub fn backward(
+    input: &[f32],
+    kernel: &[f32],
+    bias: &[f32],
+    g: &ConvGeom,
+    upstream: &[f32],
+    from: Strided,
+    dk: &mut [f32],
+    db: &mut [f32],
+) {
     check(input, kernel, bias, g, (0, g.h));
     assert!(dk.len() == 9 * g.cin * g.cout && db.len() == g.cout, "conv_direct::backward: gradients of {} and {}", dk.len(), db.len());
     let args = Backward { input, kernel, bias, g, upstream, from };
@@ -490,7 +499,11 @@ mod tests {
     /// instruction set this machine has, which must agree bit for bit.
     #[test]
     fn matches_the_gemm_path_on_every_instruction_set() {
-        for g in [ConvGeom { h: 9, w: 7, cin: 1, cout: 20 }, ConvGeom { h: 6, w: 10, cin: 3, cout: 64 }, ConvGeom { h: 4, w: 4, cin: 1, cout: 2 }] {
+        for g in [
+            ConvGeom { h: 9, w: 7, cin: 1, cout: 20 },
+            ConvGeom { h: 6, w: 10, cin: 3, cout: 64 },
+            ConvGeom { h: 4, w: 4, cin: 1, cout: 2 },
+        ] {
             let input = padded(&g, 0.3);
             let weights = values(9 * g.cin * g.cout, 1.1);
             let bias = values(g.cout, 2.3).iter().map(|b| 0.3 * b).collect::<Vec<_>>();
