@@ -25,7 +25,7 @@ type Lanes = [f32; LANES];
 /// patches are worth gathering for the GEMM path; see [`ConvGeom::gathers`]).
 #[must_use]
 pub fn fits(g: &ConvGeom) -> bool {
-    g.gathers() && g.cin >= 1
+    g.gathers()
 }
 
 /// The k-major kernel (`(ky, kx, c) × cout`, `conv::kernel_k_major`) in groups of [`LANES`]

@@ -128,10 +128,9 @@ impl FastNet {
         }
     }
 
-    /// Whether layer `l` is computed directly, fused with its pooling (`conv_direct`): the first
-    /// layer, which needs no input gradient.
+    /// Whether layer `l` is computed directly ([`is_direct`]).
     fn layer_direct(&self, l: usize) -> bool {
-        l == 0 && conv_direct::fits(&self.geoms[l])
+        is_direct(l, &self.geoms[l])
     }
 
     /// Whether layer `l` runs on the bf16 kernel.
@@ -158,7 +157,7 @@ impl FastNet {
                 for (l, g) in self.geoms.iter().enumerate() {
                     part.input[l] = vec![0.0; images * g.padded_in()];
                     // A direct layer's pre-activations are recomputed, never kept.
-                    part.pre[l] = if l == 0 && conv_direct::fits(g) { Vec::new() } else { vec![0.0; images * g.out_len()] };
+                    part.pre[l] = if is_direct(l, g) { Vec::new() } else { vec![0.0; images * g.out_len()] };
                     part.dk[l] = vec![0.0; 9 * g.cin * g.cout];
                     part.db[l] = vec![0.0; g.cout];
                     if self.bf16 && conv_bf16::fits(g) {
@@ -167,7 +166,7 @@ impl FastNet {
                 }
                 // Patches of the layers that gather them for a GEMM (not a direct first layer).
                 let gathering = self.geoms.iter().enumerate().map(|(l, g)| {
-                    let forward = if l == 0 && conv_direct::fits(g) { 0 } else { g.patches_len() };
+                    let forward = if is_direct(l, g) { 0 } else { g.patches_len() };
                     forward.max(g.transposed().patches_len())
                 });
                 part.patches = vec![0.0; gathering.max().unwrap_or(0)];
@@ -203,7 +202,7 @@ impl FastNet {
             if self.layer_bf16(l) {
                 self.k_packed[l].pack(&self.k_major[l], View::rows(0, 9 * g.cin, g.cout, g.cout));
             }
-            if l == 0 && conv_direct::fits(g) {
+            if is_direct(l, g) {
                 conv_direct::pack(&self.k_major[l], g, &mut self.k_direct);
             }
         }
@@ -487,6 +486,12 @@ impl Part {
             }
         }
     }
+}
+
+/// Whether layer `l` of geometry `g` is computed directly, fused with its pooling
+/// (`conv_direct`): the first layer, which needs no input gradient, where it has few channels.
+fn is_direct(l: usize, g: &ConvGeom) -> bool {
+    l == 0 && conv_direct::fits(g)
 }
 
 /// Each layer's kernels in both layouts and which one it runs on; the first layer's grouped
