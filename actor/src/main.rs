@@ -3,6 +3,7 @@
 //! reference driver or a random policy, and benchmarks the simulator.
 
 mod bench;
+mod best;
 mod drive;
 mod episode;
 mod eval;

@@ -12,9 +12,8 @@ use agent::config::RunConfig;
 use anyhow::{Context, Result};
 use clap::Args;
 use learner::serve::{ServeOptions, start};
-use learner::telemetry::records::{EvalRecord, EvalRouteRecord};
 
-use crate::eval::periodic::{evaluate_weights, route_types_mastered};
+use crate::eval::periodic::{SEED, score_weights};
 
 #[derive(Debug, Args)]
 pub struct TrainArgs {
@@ -57,12 +56,16 @@ pub struct TrainArgs {
     /// Environments per actor.
     #[arg(long, default_value_t = 4)]
     pub envs: usize,
-    /// Minutes between greedy evaluations of the current weights on the seven routes (ε = 0,
-    /// written to RUN_DIR/eval.jsonl and drawn by `learner plot`); 0 turns them off.
+    /// Minutes between greedy evaluations of the current weights on the seven routes (ε = 0;
+    /// with `[env.hazards] rate > 0`, on the hazard suite too), on validation seeds 10000..
+    /// that `actor eval` does not use. Written to RUN_DIR/eval.jsonl (drawn by `learner plot`);
+    /// the weights that score highest (mean driving score) are kept in RUN_DIR/best/, which
+    /// `actor eval --checkpoint RUN_DIR/best` reads. 0 turns them off.
     #[arg(long, default_value_t = 2.0, value_name = "MINUTES")]
     pub eval_every: f64,
-    /// Runs per route of each periodic evaluation (fixed seeds, the same every time).
-    #[arg(long, default_value_t = 2)]
+    /// Runs per route (and per hazard kind) of each periodic evaluation (fixed seeds, the same
+    /// every time).
+    #[arg(long, default_value_t = 4)]
     pub eval_runs: u32,
     /// When resuming a run whose replay log cannot be read whole (a record out of order or that
     /// does not decode): keep every batch before the damage and set the rest aside in
@@ -166,7 +169,7 @@ pub async fn run(args: &TrainArgs) -> Result<()> {
 
     let evaluations = (args.eval_every > 0.0).then(|| {
         let every = Duration::from_secs_f64(args.eval_every * 60.0);
-        tokio::spawn(periodic_evaluation(running.shared.clone(), every, args.eval_runs, reporter.clone()))
+        tokio::spawn(periodic_evaluation(running.shared.clone(), args.run_dir.clone(), every, args.eval_runs, reporter.clone()))
     });
 
     let shared = running.shared.clone();
@@ -229,15 +232,18 @@ pub async fn run(args: &TrainArgs) -> Result<()> {
 }
 
 /// Every `every`, drives the learner's current weights greedily on the default town's seven routes
-/// (`runs` runs each, fixed seeds) and records the result in `eval.jsonl`; until aborted.
+/// (and, for a run that trains with hazards, on the hazard suite), `runs` runs each on the
+/// validation seeds, records the result in `eval.jsonl` and keeps the best weights in `best/`;
+/// until aborted.
 async fn periodic_evaluation(
     shared: std::sync::Arc<learner::state::Shared>,
+    run_dir: PathBuf,
     every: Duration,
     runs: u32,
     reporter: std::sync::Arc<learner::telemetry::progress::Reporter>,
 ) {
-    /// Seeds of the periodic evaluations: apart from `actor eval`'s default 0.., the same each time.
-    const SEED: u64 = 10_000;
+    let hazards = shared.cfg.env.hazards.rate > 0.0;
+    let mut best = crate::best::current(&run_dir);
     loop {
         tokio::time::sleep(every).await;
         let (weights, learner_step, env_steps) = {
@@ -248,40 +254,38 @@ async fn periodic_evaluation(
             continue;
         }
         let (cfg, bytes, time_secs) = (shared.cfg.clone(), weights.bytes.clone(), shared.run_secs());
-        let done = tokio::task::spawn_blocking(move || evaluate_weights(&cfg, &bytes, "default_town", runs, SEED)).await;
-        let report = match done {
-            Ok(Ok(report)) => report,
+        let done = tokio::task::spawn_blocking(move || score_weights(&cfg, &bytes, "default_town", runs, SEED, hazards)).await;
+        let score = match done {
+            Ok(Ok(score)) => score,
             Ok(Err(e)) => {
                 tracing::warn!("periodic evaluation failed: {e:#}");
                 continue;
             }
             Err(_) => return,
         };
-        let Some(a) = report.agents.first() else { continue };
-        let total_runs: u32 = a.routes.iter().map(|r| r.runs).sum();
-        let record = EvalRecord {
-            time_secs,
-            env_steps,
-            learner_step,
-            weights_version: weights.version,
-            town: report.town.clone(),
-            runs,
-            route_types_mastered: route_types_mastered(&report) as u32,
-            mean_return: a.mean_return,
-            completion_rate: f64::from(a.routes.iter().map(|r| r.completed).sum::<u32>()) / f64::from(total_runs.max(1)),
-            routes: a
-                .routes
-                .iter()
-                .map(|r| EvalRouteRecord { route: r.route.into(), completed: r.completed, mean_return: r.mean_return })
-                .collect(),
-        };
+        let mut record = score.record("default_town", runs);
+        (record.time_secs, record.env_steps, record.learner_step, record.weights_version) =
+            (time_secs, env_steps, learner_step, weights.version);
+        record.best = crate::best::beats(&record, best.as_ref());
+        let hazard_part = record.hazard_driving_score.map_or(String::new(), |h| format!(", hazards {h:.2}"));
         reporter.println(&format!(
-            "[eval {:>5.1} min] greedy on the 7 routes ({runs} runs each): {}/7 route types completed in at least half their runs, {:.0}% of runs, mean return {:.1}",
+            "[eval {:>5.1} min] greedy on the 7 routes ({runs} runs each): {}/7 route types completed in at least half their runs, {:.0}% of runs, mean return {:.1}; driving score {:.2}{hazard_part}{}",
             time_secs / 60.0,
             record.route_types_mastered,
             100.0 * record.completion_rate,
-            record.mean_return
+            record.mean_return,
+            record.driving_score.unwrap_or_default(),
+            if record.best { " (best so far: kept in best/)" } else { "" }
         ));
+        if record.best {
+            match crate::best::save(&run_dir, &weights.bytes, &shared.cfg.to_toml(), &record) {
+                Ok(_) => best = Some(record.clone()),
+                Err(e) => {
+                    tracing::warn!("writing best/: {e:#}");
+                    record.best = false;
+                }
+            }
+        }
         if let Err(e) = shared.metrics.eval(&record) {
             tracing::warn!("writing eval.jsonl: {e}");
         }

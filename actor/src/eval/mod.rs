@@ -17,6 +17,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{Result, bail};
 use clap::Args;
 
+pub mod behaviour;
 pub mod periodic;
 pub mod report;
 pub mod run;

@@ -1,24 +1,94 @@
 //! Greedy evaluation during training: the learner's current weights driven greedily on the seven
-//! routes of a town, a few runs each, so that a run's metrics show when the agent first becomes
-//! competent (not only its ε-greedy training returns).
+//! routes of a town, a few runs each, and — for a run that trains with hazards — on the hazard
+//! suite, both scored the field's way (`suite.rs`). A run's metrics then show when the agent first
+//! becomes competent (not only its ε-greedy training returns), and `best/` keeps the weights that
+//! scored highest (`best.rs`).
 
 use std::path::PathBuf;
 
 use agent::config::RunConfig;
 use anyhow::Result;
-use sim_core::scenario::{EvalRoute, Scenario};
+use learner::telemetry::records::{EvalRecord, EvalRouteRecord};
 use sim_core::town::Town;
 
-use super::report::Report;
-use super::run::{Agent, Driver, EvalOptions, evaluate};
+use super::run::{Agent, Driver};
+use super::suite::{Suite, SuiteAgentReport, SuiteOptions, evaluate_suite};
 use crate::greedy::{CheckpointInfo, GreedyAgent};
 
 /// Route types completed in at least this share of their runs count as mastered.
 pub const MASTERED_SHARE: f64 = 0.5;
 
-/// Evaluates `weights` of a run configured by `cfg` on the seven routes of `town`, `runs` runs
-/// each (seeds `seed..seed + runs`), on one thread.
-pub fn evaluate_weights(cfg: &RunConfig, weights: &[u8], town: &str, runs: u32, seed: u64) -> Result<Report> {
+/// Seeds of the periodic evaluations, `SEED..SEED + runs`: validation seeds, apart from those of
+/// `actor eval` (0.. by default, and in `scripts/reproduce.sh`), so that the weights chosen by
+/// them are judged on runs that did not choose them.
+pub const SEED: u64 = 10_000;
+
+/// One periodic evaluation's scores.
+#[derive(Debug, Clone)]
+pub struct PeriodicScore {
+    /// The seven routes (`--suite clean`).
+    pub clean: SuiteAgentReport,
+    /// The hazard suite, when asked for.
+    pub hazards: Option<SuiteAgentReport>,
+}
+
+impl PeriodicScore {
+    /// What `best/` is chosen by: the mean of the suites' driving scores.
+    #[must_use]
+    pub fn selection_score(&self) -> f64 {
+        match &self.hazards {
+            Some(h) => 0.5 * (self.clean.driving_score + h.driving_score),
+            None => self.clean.driving_score,
+        }
+    }
+
+    /// Route types completed (route completion 1) in at least [`MASTERED_SHARE`] of their runs.
+    #[must_use]
+    pub fn route_types_mastered(&self) -> usize {
+        self.clean.scenarios.iter().filter(|s| completed(&s.runs) as f64 >= MASTERED_SHARE * s.runs.len() as f64).count()
+    }
+
+    /// The line of `eval.jsonl`, without the learner's counters (the caller's).
+    #[must_use]
+    pub fn record(&self, town: &str, runs: u32) -> EvalRecord {
+        let all: Vec<_> = self.clean.scenarios.iter().flat_map(|s| &s.runs).collect();
+        EvalRecord {
+            time_secs: 0.0,
+            env_steps: 0,
+            learner_step: 0,
+            weights_version: 0,
+            town: town.to_owned(),
+            runs,
+            route_types_mastered: self.route_types_mastered() as u32,
+            mean_return: mean(self.clean.scenarios.iter().map(|s| s.mean_return)),
+            completion_rate: all.iter().filter(|r| r.route_completion >= 1.0).count() as f64 / all.len().max(1) as f64,
+            routes: self
+                .clean
+                .scenarios
+                .iter()
+                .map(|s| EvalRouteRecord { route: s.scenario.into(), completed: completed(&s.runs) as u32, mean_return: s.mean_return })
+                .collect(),
+            driving_score: Some(self.clean.driving_score),
+            hazard_driving_score: self.hazards.as_ref().map(|h| h.driving_score),
+            selection_score: Some(self.selection_score()),
+            best: false,
+        }
+    }
+}
+
+fn completed(runs: &[super::score::RunScore]) -> usize {
+    runs.iter().filter(|r| r.route_completion >= 1.0).count()
+}
+
+fn mean(xs: impl Iterator<Item = f64>) -> f64 {
+    let (sum, n) = xs.fold((0.0, 0usize), |(s, n), x| (s + x, n + 1));
+    if n == 0 { 0.0 } else { sum / n as f64 }
+}
+
+/// Scores `weights` of a run configured by `cfg` on `town`: the seven routes and, with
+/// `hazards`, the hazard suite, `runs` runs per route or kind (seeds `seed..seed + runs`), on one
+/// thread.
+pub fn score_weights(cfg: &RunConfig, weights: &[u8], town: &str, runs: u32, seed: u64, hazards: bool) -> Result<PeriodicScore> {
     let source = CheckpointInfo {
         weights: PathBuf::from("(the learner's current weights)"),
         run_dir: None,
@@ -29,14 +99,14 @@ pub fn evaluate_weights(cfg: &RunConfig, weights: &[u8], town: &str, runs: u32, 
     let agent = GreedyAgent::from_weights(cfg.clone(), weights, 1, source)?;
     let mut agents = vec![Agent { name: "current".into(), driver: Driver::Greedy(Box::new(agent)) }];
     let town = Town::embedded(town).ok_or_else(|| anyhow::anyhow!("unknown town `{town}`"))?;
-    let routes = EvalRoute::ALL.iter().map(|&r| (r.name(), Scenario::Eval(r))).collect();
-    evaluate(&mut agents, &EvalOptions { routes, runs, seed, traffic: None, town, progress: false })
-}
-
-/// Route types completed in at least [`MASTERED_SHARE`] of their runs.
-#[must_use]
-pub fn route_types_mastered(report: &Report) -> usize {
-    report.agents.first().map_or(0, |a| a.routes.iter().filter(|r| r.completion_rate >= MASTERED_SHARE).count())
+    let mut suite = |suite| -> Result<SuiteAgentReport> {
+        let opts = SuiteOptions { suite, runs, seed, traffic: None, town: town.clone(), progress: false };
+        let mut report = evaluate_suite(&mut agents, &opts)?;
+        Ok(report.agents.remove(0))
+    };
+    let clean = suite(Suite::Clean)?;
+    let hazards = if hazards { Some(suite(Suite::Hazards)?) } else { None };
+    Ok(PeriodicScore { clean, hazards })
 }
 
 #[cfg(test)]
@@ -46,13 +116,23 @@ mod tests {
     use sim_core::config::Variant;
 
     #[test]
-    fn fresh_weights_are_evaluated_on_all_seven_routes() {
+    fn fresh_weights_are_scored_on_the_seven_routes_and_on_the_hazards_when_asked() {
         let cfg = tiny_config(Variant::Hybrid);
         let weights = agent::weights::to_safetensors(&agent::fastnet::Params::init(cfg.net_shape(), 3), "").unwrap();
-        let report = evaluate_weights(&cfg, &weights, "default_town", 1, 0).unwrap();
-        assert_eq!(report.agents[0].routes.len(), 7);
-        assert!(route_types_mastered(&report) <= 7);
-        let e = evaluate_weights(&cfg, b"not weights", "default_town", 1, 0).unwrap_err();
+        let clean = score_weights(&cfg, &weights, "default_town", 1, SEED, false).unwrap();
+        assert_eq!(clean.clean.scenarios.len(), 7);
+        assert!(clean.hazards.is_none());
+        assert!(clean.route_types_mastered() <= 7);
+        assert_eq!(clean.selection_score(), clean.clean.driving_score);
+        let record = clean.record("default_town", 1);
+        assert_eq!((record.routes.len(), record.driving_score, record.hazard_driving_score), (7, Some(clean.clean.driving_score), None));
+        let both = score_weights(&cfg, &weights, "default_town", 1, SEED, true).unwrap();
+        let h = both.hazards.as_ref().expect("the hazard suite was asked for");
+        assert_eq!(h.scenarios.len(), 7);
+        assert_eq!(both.selection_score(), 0.5 * (both.clean.driving_score + h.driving_score));
+        // The same weights and seeds: the same scores.
+        assert_eq!(both.clean.driving_score, clean.clean.driving_score);
+        let e = score_weights(&cfg, b"not weights", "default_town", 1, SEED, false).unwrap_err();
         assert!(format!("{e:#}").contains("do not fit"), "{e:#}");
     }
 }

@@ -8,6 +8,8 @@
 use serde::Serialize;
 use sim_core::collision::CollisionKind;
 
+use super::behaviour::Behaviour;
+
 /// An infraction of a run.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize)]
 #[serde(rename_all = "snake_case")]
@@ -97,6 +99,8 @@ pub struct RunScore {
     /// The hazard the run had (`null` for none) and whether it fired.
     pub hazard: Option<&'static str>,
     pub hazard_triggered: bool,
+    /// How it drove around the hazard (`behaviour.rs`).
+    pub behaviour: Behaviour,
 }
 
 /// The product of the infractions' factors.

@@ -21,6 +21,7 @@ use sim_core::scenario::{EvalRoute, Scenario};
 use sim_core::vehicle::Action;
 
 use crate::episode::Episode;
+use crate::eval::behaviour::BehaviourWatch;
 use crate::eval::run::{Agent, Driver, eval_env_config};
 use crate::eval::score::{Infraction, ProgressWatch, RunEnd, RunScore, score_run};
 use crate::greedy::greedy_actions;
@@ -231,6 +232,10 @@ fn drive_scored(driver: &mut Driver, envs: &mut [Env], seed: u64, scenario: Scen
     let n = envs.len();
     let mut episodes = vec![Episode::default(); n];
     let mut watches = vec![ProgressWatch::default(); n];
+    let mut behaviours = vec![BehaviourWatch::default(); n];
+    for (b, env) in behaviours.iter_mut().zip(envs.iter()) {
+        b.record(env);
+    }
     let mut ends: Vec<Option<RunEnd>> = vec![None; n];
     loop {
         let live: Vec<usize> = (0..n).filter(|&k| ends[k].is_none()).collect();
@@ -248,6 +253,7 @@ fn drive_scored(driver: &mut Driver, envs: &mut [Env], seed: u64, scenario: Scen
             let env = &mut envs[k];
             let r = env.step(action)?;
             episodes[k].record(&r);
+            behaviours[k].record(env);
             let length = env.route.length();
             let blocked = watches[k].record(r.info.progress * length, env.cfg.dt);
             if r.terminated || r.truncated || blocked {
@@ -267,8 +273,9 @@ fn drive_scored(driver: &mut Driver, envs: &mut [Env], seed: u64, scenario: Scen
         .into_iter()
         .zip(&episodes)
         .zip(envs.iter())
+        .zip(behaviours)
         .enumerate()
-        .map(|(k, ((end, ep), env))| {
+        .map(|(k, (((end, ep), env), behaviour))| {
             let end = end.expect("every run ended");
             let (route_completion, infractions, infraction_penalty, driving_score, success, km) = score_run(&end);
             RunScore {
@@ -283,6 +290,7 @@ fn drive_scored(driver: &mut Driver, envs: &mut [Env], seed: u64, scenario: Scen
                 steps: ep.steps,
                 hazard: env.hazard.as_ref().map(|h| h.kind.name()),
                 hazard_triggered: env.hazard.as_ref().is_some_and(|h| h.triggered),
+                behaviour: behaviour.finish(),
             }
         })
         .collect())

@@ -271,6 +271,10 @@ fn periodic_evaluations_get_a_panel_and_give_the_time_to_competence() {
         mean_return: f64::from(mastered) * 10.0,
         completion_rate: f64::from(mastered) / 7.0,
         routes: vec![EvalRouteRecord { route: "straight_urban".into(), completed: 2, mean_return: 50.0 }],
+        driving_score: None,
+        hazard_driving_score: None,
+        selection_score: None,
+        best: false,
     };
     write_jsonl(&run.join("eval.jsonl"), &[eval(2.0, 1), eval(4.0, 4), eval(6.0, 5), eval(8.0, 7)]);
     let out = tmp.path().join("curves.png");

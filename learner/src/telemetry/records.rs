@@ -35,6 +35,20 @@ pub struct EvalRecord {
     /// Completed runs over all runs.
     pub completion_rate: f64,
     pub routes: Vec<EvalRouteRecord>,
+    /// The field's driving score (`actor eval --suite clean`) over the same runs. Absent from
+    /// records written before it was measured.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub driving_score: Option<f64>,
+    /// The driving score on the hazard suite (`actor eval --suite hazards`, `runs` per kind), for
+    /// a run that trains with hazards.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub hazard_driving_score: Option<f64>,
+    /// What `best/` is chosen by: the mean of the driving scores measured.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub selection_score: Option<f64>,
+    /// Whether these weights became the run's `best/` checkpoint.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub best: bool,
 }
 
 /// One route of an [`EvalRecord`].

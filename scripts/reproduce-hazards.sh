@@ -1,0 +1,256 @@
+#!/usr/bin/env bash
+# The hazard experiment of docs/RESULTS.md (`scripts/reproduce.sh --experiment hazards` runs this):
+# does an agent trained with r_w and a collision penalty leave the planner's path when following it
+# is wrong, and does it beat the planner that follows blindly?
+#
+#   1. the hazard rate: hz-hybrid-tuned, seed 1, trained at each of --rates (`[env.hazards] rate`,
+#      the share of training episodes with a hazard); the rate whose run scored best in its last
+#      periodic evaluations (mean of the clean and hazard driving scores, validation seeds
+#      10000..) is used for every agent (a search per agent is not run: see docs/RESULTS.md)
+#   2. the agents of group `hazards` of experiments/agents.txt × --seeds, seed by seed, each to
+#      --env-steps; `hz-e2e-best` is the end-to-end search's winner of scripts/reproduce.sh
+#   3. the longer-budget row (group `long`): hz-hybrid-tuned's run of each seed trained on from its
+#      400k-step checkpoint to --long-env-steps (a copy of its run directory; resumed, so the
+#      curve is that run's own)
+#   4. every final checkpoint and its best/ (chosen by the periodic evaluations) evaluated on both
+#      suites (`hazards`, `clean`) and both towns, `actor eval --runs 5 --seed 0`
+#   5. the tables: scripts/hazard_results.py report (docs/RESULTS.md's hazard sections, the
+#      "hazards" key of experiments/results.json, docs/figures/hazards-*.svg)
+#
+# Each run keeps what the tables need in experiments/hazards/AGENT/seedS/ (its evaluations, its
+# periodic evaluations, train.jsonl, its episodes thinned, a run.json). A run whose run.json exists
+# is done and skipped; a stopped training run resumes from its checkpoint in --runs-dir. Rerun the
+# same command to continue.
+#
+# Usage: scripts/reproduce-hazards.sh [--seeds N] [--env-steps N] [--long-env-steps N] [--rates R,R]
+#            [--agents A,B] [--runs N] [--eval-every M] [--report-only] [--runs-dir DIR] [--no-build]
+set -euo pipefail
+{
+
+# shellcheck source=scripts/lib.sh
+source "$(dirname "$0")/lib.sh"
+agents_of hazards agents
+agents_of long long
+agents_of search search
+
+usage() {
+    cat <<'EOF'
+scripts/reproduce-hazards.sh — the hazard experiment of docs/RESULTS.md.
+
+  --seeds N            seeds per agent, 1..N (default 3)
+  --env-steps N        training budget per run, environment steps (default 400000)
+  --long-env-steps N   the longer-budget row's budget (default 1600000, 4x); 0 skips the row
+  --rates R,R          hazard rates searched with hz-hybrid-tuned seed 1 (default 0.25,0.5,1.0)
+  --agents A,B         train only these (names below, `rates` for the rate search, `long` for the
+                       longer row); the report still covers every finished run
+  --runs N             evaluation runs per scenario, suite and town (default 5)
+  --eval-every M       minutes between periodic evaluations during training (default 1)
+  --report-only        train nothing: rebuild the tables from experiments/hazards
+  --runs-dir DIR       where the training run directories go (default runs/hazards)
+  --no-build           use the binaries in target/release as they are
+  -h, --help           this text
+
+Agents (each with --seeds seeds, trained with the searched hazard rate):
+EOF
+    local v name what
+    for v in "${agents[@]}" "${long[@]}"; do
+        IFS='|' read -r name _ _ what <<<"$v"
+        printf '  %-24s %s\n' "$name" "$what"
+    done
+    echo
+    echo "Rerunning the same command resumes; finished runs (experiments/hazards/AGENT/seedS/run.json) are skipped."
+}
+
+seeds=3
+env_steps=400000
+long_env_steps=1600000
+rates="0.25,0.5,1.0"
+only=""
+runs=5
+eval_every=1
+report_only=0
+runs_dir="runs/hazards"
+build=1
+while [[ $# -gt 0 ]]; do
+    case "$1" in
+        --seeds) seeds="${2:?--seeds needs a number}"; shift 2 ;;
+        --env-steps) env_steps="${2:?--env-steps needs a number}"; shift 2 ;;
+        --long-env-steps) long_env_steps="${2:?--long-env-steps needs a number}"; shift 2 ;;
+        --rates) rates="${2:?--rates needs rates}"; shift 2 ;;
+        --agents) only="${2:?--agents needs names}"; shift 2 ;;
+        --runs) runs="${2:?--runs needs a number}"; shift 2 ;;
+        --eval-every) eval_every="${2:?--eval-every needs minutes}"; shift 2 ;;
+        --report-only) report_only=1; shift ;;
+        --runs-dir) runs_dir="${2:?--runs-dir needs a directory}"; shift 2 ;;
+        --no-build) build=0; shift ;;
+        -h|--help) usage; exit 0 ;;
+        *) echo "reproduce-hazards.sh: unknown argument \`$1\` (see --help)" >&2; exit 2 ;;
+    esac
+done
+require_positive reproduce-hazards.sh "seeds:$seeds" "env-steps:$env_steps" "runs:$runs" "eval-every:$eval_every"
+for pair in "seeds:$seeds" "env-steps:$env_steps" "long-env-steps:$long_env_steps" "runs:$runs"; do
+    if ! [[ "${pair#*:}" =~ ^[0-9]+$ ]]; then
+        echo "reproduce-hazards.sh: --${pair%%:*} ${pair#*:} must be a whole number" >&2
+        exit 2
+    fi
+done
+if [[ "$long_env_steps" != 0 && "$long_env_steps" -le "$env_steps" ]]; then
+    echo "reproduce-hazards.sh: --long-env-steps $long_env_steps must exceed --env-steps $env_steps (or be 0)" >&2
+    exit 2
+fi
+for r in ${rates//,/ }; do
+    if ! [[ "$r" =~ ^(0?[.][0-9]+|1([.]0*)?)$ ]] || [[ "$r" =~ ^0?[.]0*$ ]]; then
+        echo "reproduce-hazards.sh: --rates: \`$r\` must be a rate in (0, 1]" >&2
+        exit 2
+    fi
+done
+known=" rates long "
+for v in "${agents[@]}" "${long[@]}"; do known+="${v%%|*} "; done
+for name in ${only//,/ }; do
+    if [[ "$known" != *" $name "* ]]; then
+        echo "reproduce-hazards.sh: --agents: unknown agent \`$name\`; expected some of:$known" >&2
+        exit 2
+    fi
+done
+
+cd "$(dirname "$0")/.."
+trap 'echo; echo "reproduce-hazards.sh: interrupted — run the same command again to resume." >&2; exit 130' INT TERM
+
+bin="${CARGO_TARGET_DIR:-target}/release"
+actor="$bin/actor"
+results="experiments/hazards"
+if [[ "$build" == 1 && "$report_only" == 0 ]]; then
+    echo "+ cargo build --release --locked -p actor -p learner-cli" >&2
+    cargo build --release --locked -p actor -p learner-cli
+fi
+mkdir -p "$runs_dir" "$results"
+
+wanted() {
+    [[ -z "$only" ]] && return 0
+    [[ ",$only," == *",$1,"* ]]
+}
+
+# config_for NAME PRESET EXTRA RATE FILE: the run's configuration: the preset, the agent's lines,
+# and the hazard rate.
+config_for() {
+    local name="$1" preset="$2" extra="$3" rate="$4" file="$5"
+    {
+        echo "# $name: the \`$preset\` preset$([[ -n "$extra" ]] && echo " with the lines below"), trained with hazards in $rate of its episodes."
+        echo "preset = \"$preset\""
+        if [[ -n "$extra" ]]; then
+            echo
+            printf '%b\n' "$extra"
+        fi
+        echo
+        echo "[env.hazards]"
+        echo "rate = $rate"
+    } >"$file"
+}
+
+# evaluate DIR OUT: the last checkpoint and best/ of run DIR on both suites and towns.
+evaluate() {
+    local dir="$1" out="$2" suite town
+    local -a agents_args=(--checkpoint "$dir" --name last)
+    [[ -d "$dir/best" ]] && agents_args+=(--checkpoint "$dir/best" --name best)
+    for suite in hazards clean; do
+        for town in default_town held_out_town; do
+            [[ -f "$out/eval-$suite-$town.json" ]] && continue
+            echo "   evaluating on $suite / $town ($runs runs per scenario)" >&2
+            "$actor" eval --suite "$suite" --town "$town" --runs "$runs" --seed 0 "${agents_args[@]}" \
+                --json-out "$out/eval-$suite-$town.json.tmp" >/dev/null
+            mv "$out/eval-$suite-$town.json.tmp" "$out/eval-$suite-$town.json"
+        done
+    done
+}
+
+# train_and_evaluate NAME PRESET EXTRA RATE SEED BUDGET [RESULTS_NAME]: one run, skipped when its
+# run.json exists. The run directory is RUNS_DIR/NAME/seedS, its results RESULTS/NAME/seedS.
+train_and_evaluate() {
+    local name="$1" preset="$2" extra="$3" rate="$4" seed="$5" budget="$6"
+    local dir="$runs_dir/$name/seed$seed" out="$results/$name/seed$seed"
+    if [[ -f "$out/run.json" ]]; then
+        echo "== $name seed $seed: done ($out/run.json)" >&2
+        return
+    fi
+    mkdir -p "$dir" "$out"
+    local cfg="$out/config.toml"
+    [[ -f "$cfg" ]] || config_for "$name" "$preset" "$extra" "$rate" "$cfg"
+    local started load_before t0
+    started=$(date -u +%Y-%m-%dT%H:%M:%SZ)
+    load_before=$(cut -d' ' -f1-3 /proc/loadavg)
+    t0=$(date +%s)
+    echo "== $name seed $seed: training to $budget env steps, hazard rate $rate (run directory $dir)" >&2
+    echo "+ $actor train --config $cfg --run-dir $dir --seed $seed --max-env-steps $budget --eval-every $eval_every" >&2
+    "$actor" train --config "$cfg" --run-dir "$dir" --seed "$seed" --max-env-steps "$budget" --eval-every "$eval_every"
+    local session_secs=$(( $(date +%s) - t0 ))
+    evaluate "$dir" "$out"
+    python3 scripts/hazard_results.py keep-run --run-dir "$dir" --out "$out" --name "$name" --preset "$preset" \
+        --seed "$seed" --rate "$rate" --env-steps-budget "$budget" --started "$started" \
+        --load-before "$load_before" --session-secs "$session_secs" \
+        --commit "$(git rev-parse --short HEAD 2>/dev/null || echo unknown)"
+}
+
+if [[ "$report_only" == 0 ]]; then
+    # 1. The rate search.
+    IFS='|' read -r tuned tuned_preset tuned_extra _ <<<"${agents[0]}"
+    if wanted rates || wanted "$tuned"; then
+        for rate in ${rates//,/ }; do
+            train_and_evaluate "rate-$rate" "$tuned_preset" "$tuned_extra" "$rate" 1 "$env_steps"
+        done
+    fi
+    rate=$(python3 scripts/hazard_results.py best-rate --results "$results" --rates "$rates") || {
+        echo "reproduce-hazards.sh: the rate search has not finished (run --agents rates first)" >&2
+        exit 1
+    }
+    echo "== the hazard rate: $rate (the search's best)" >&2
+    # Its seed-1 run is hz-hybrid-tuned's seed 1: the same configuration, trained once.
+    if [[ ! -e "$results/$tuned/seed1" ]]; then
+        mkdir -p "$results/$tuned" "$runs_dir/$tuned"
+        cp -r "$results/rate-$rate/seed1" "$results/$tuned/seed1"
+        sed -i "s/^# rate-$rate:/# $tuned:/" "$results/$tuned/seed1/config.toml"
+        python3 scripts/hazard_results.py rename-run --out "$results/$tuned/seed1" --name "$tuned"
+        [[ -e "$runs_dir/$tuned/seed1" ]] || ln -s "../rate-$rate/seed1" "$runs_dir/$tuned/seed1"
+    fi
+    e2e=$(python3 scripts/results.py best-end-to-end --results experiments/results) || {
+        echo "reproduce-hazards.sh: scripts/reproduce.sh's end-to-end search has not finished" >&2
+        exit 1
+    }
+    e2e_row=""
+    for v in "${search[@]}"; do [[ "${v%%|*}" == "$e2e" ]] && e2e_row="$v"; done
+    # 2. The agents, seed by seed, so that an experiment stopped early has every agent.
+    for seed in $(seq 1 "$seeds"); do
+        for v in "${agents[@]}"; do
+            IFS='|' read -r name preset extra _ <<<"$v"
+            if [[ "$name" == hz-e2e-best ]]; then IFS='|' read -r _ preset extra _ <<<"$e2e_row"; fi
+            if wanted "$name"; then train_and_evaluate "$name" "$preset" "$extra" "$rate" "$seed" "$env_steps"; fi
+        done
+    done
+    # 3. The longer-budget row: each seed's hz-hybrid-tuned run trained on.
+    IFS='|' read -r long_name _ _ _ <<<"${long[0]}"
+    if [[ "$long_env_steps" != 0 ]] && { wanted long || wanted "$long_name"; }; then
+        for seed in $(seq 1 "$seeds"); do
+            from="$runs_dir/$tuned/seed$seed" dir="$runs_dir/$long_name/seed$seed"
+            if [[ -f "$results/$long_name/seed$seed/run.json" ]]; then
+                echo "== $long_name seed $seed: done" >&2
+                continue
+            fi
+            if [[ ! -f "$results/$tuned/seed$seed/run.json" ]]; then
+                echo "== $long_name seed $seed: waits for $tuned seed $seed" >&2
+                continue
+            fi
+            if [[ ! -d "$dir" ]]; then
+                echo "== $long_name seed $seed: starting from a copy of $from" >&2
+                mkdir -p "$runs_dir/$long_name"
+                cp -rL "$from" "$dir.tmp" && mv "$dir.tmp" "$dir"
+            fi
+            mkdir -p "$results/$long_name/seed$seed"
+            cp "$results/$tuned/seed$seed/config.toml" "$results/$long_name/seed$seed/config.toml"
+            train_and_evaluate "$long_name" "$tuned_preset" "$tuned_extra" "$rate" "$seed" "$long_env_steps"
+        done
+    fi
+fi
+
+echo "== report: docs/RESULTS.md (hazard sections), experiments/results.json (\"hazards\"), docs/figures/hazards-*.svg" >&2
+python3 scripts/hazard_results.py report --results "$results" --out-dir docs --json-out experiments/results.json
+exit
+}
