@@ -11,12 +11,23 @@
 # stopped training run continues from its checkpoint in the runs directory to the same budget, and
 # a finished run is never trained again, even from a fresh clone (its results are committed).
 #
-# Usage: scripts/reproduce.sh [--seeds N] [--env-steps N] [--agents A,B] [--runs N] [--report-only]
+# `--experiment hazards` runs the hazard experiment instead (scripts/reproduce-hazards.sh, which
+# takes the flags that follow it).
+#
+# Usage: scripts/reproduce.sh [--experiment main|hazards] [--seeds N] [--env-steps N] [--agents A,B] [--runs N] [--report-only]
 #                             [--runs-dir DIR] [--out-dir DIR] [--data-dir DIR] [--smoke] [--no-build]
 set -euo pipefail
 # The whole script is one block, read before it runs: a file edited (or pulled) during an
 # experiment of hours cannot change what the running shell reads next.
 {
+
+if [[ "${1:-}" == --experiment ]]; then
+    case "${2:-}" in
+        main) shift 2 ;;
+        hazards) shift 2; exec bash "$(dirname "$0")/reproduce-hazards.sh" "$@" ;;
+        *) echo "reproduce.sh: --experiment \`${2:-}\`: expected \`main\` (docs/RESULTS.md's table) or \`hazards\` (its hazard tables)" >&2; exit 2 ;;
+    esac
+fi
 
 # shellcheck source=scripts/lib.sh
 source "$(dirname "$0")/lib.sh"
@@ -42,6 +53,9 @@ usage() {
     cat <<'EOF'
 scripts/reproduce.sh — the experiment of docs/RESULTS.md: agents × seeds, two towns, intervals.
 
+  --experiment E  `main` (this text's experiment, the default) or `hazards` (the hazard
+                  experiment: scripts/reproduce-hazards.sh, with the flags after it; its --help)
+                  given first
   --seeds N       seeds per agent, 1..N (default 3)
   --env-steps N   training budget per run, environment steps (default 400000); wall time is
                   recorded beside it

@@ -260,3 +260,56 @@ async fn a_truncated_newest_checkpoint_resumes_from_the_previous_one() {
     assert!(s.transitions_received >= before.transitions_received, "{} < {}", s.transitions_received, before.transitions_received);
     learner.stop().await.unwrap();
 }
+
+/// `actor train` keeps `best/`: each periodic evaluation is a line of `eval.jsonl` with its driving
+/// scores (the hazard suite's too, for a run that trains with hazards); `best/` holds the weights
+/// of the highest selection score so far, across a resume, and `actor eval` drives them.
+#[test]
+fn actor_train_keeps_the_best_weights_of_its_periodic_evaluations_across_a_resume() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut cfg = config(&dir.path().join("run"), "127.0.0.1:0");
+    cfg.env.hazards.rate = 0.5;
+    let cfg_path = dir.path().join("run.toml");
+    std::fs::write(&cfg_path, cfg.to_toml()).unwrap();
+    let run_dir = dir.path().join("train");
+    let train = |minutes: &str| {
+        let out = Command::new(env!("CARGO_BIN_EXE_actor"))
+            .args(["train", "--config"])
+            .arg(&cfg_path)
+            .arg("--run-dir")
+            .arg(&run_dir)
+            .args(["--envs", "2", "--eval-every", "0.02", "--eval-runs", "1", "--max-minutes", minutes])
+            .output()
+            .unwrap();
+        assert!(out.status.success(), "actor train: {}", String::from_utf8_lossy(&out.stderr));
+    };
+    let lines = || -> Vec<serde_json::Value> {
+        let text = std::fs::read_to_string(run_dir.join("eval.jsonl")).unwrap();
+        text.lines().map(|l| serde_json::from_str(l).unwrap()).collect()
+    };
+    train("0.15");
+    let first = lines().len();
+    assert!(first >= 1, "no periodic evaluation in 9 s at one every 1.2 s");
+    train("0.3");
+    let all = lines();
+    assert!(all.len() > first, "the resumed run evaluated nothing");
+    let score = |e: &serde_json::Value| e["selection_score"].as_f64().expect("a selection score");
+    let mut best = f64::NEG_INFINITY;
+    for e in &all {
+        let (clean, hazards) = (e["driving_score"].as_f64().unwrap(), e["hazard_driving_score"].as_f64().unwrap());
+        assert!((score(e) - 0.5 * (clean + hazards)).abs() < 1e-12, "{e}");
+        // Marked best exactly when it beats every earlier one, the first session's included.
+        assert_eq!(e["best"].as_bool().unwrap_or(false), score(e) > best, "{e}");
+        best = best.max(score(e));
+    }
+    let chosen: serde_json::Value = serde_json::from_slice(&std::fs::read(run_dir.join("best/best.json")).unwrap()).unwrap();
+    assert_eq!(score(&chosen), best);
+    let out = Command::new(env!("CARGO_BIN_EXE_actor"))
+        .args(["eval", "--suite", "clean", "--runs", "1", "--json", "--checkpoint"])
+        .arg(run_dir.join("best"))
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "actor eval of best/: {}", String::from_utf8_lossy(&out.stderr));
+    let state: serde_json::Value = serde_json::from_slice(&std::fs::read(run_dir.join("best/state.json")).unwrap()).unwrap();
+    assert_eq!(state["counters"]["env_steps"], chosen["env_steps"]);
+}

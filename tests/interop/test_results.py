@@ -120,6 +120,11 @@ def test_the_report_fills_its_sections_and_keeps_the_hand_written_text(tmp_path)
     # A second report gives the same file: the sections are replaced, not appended.
     results.report(args)
     assert md.read_text() == text
+    # The hazard experiment's key (scripts/hazard_results.py) survives the main report.
+    data["hazards"] = {"rows": {"model-based": {}}}
+    (tmp_path / "data.json").write_text(json.dumps(data))
+    results.report(args)
+    assert json.loads((tmp_path / "data.json").read_text())["hazards"] == {"rows": {"model-based": {}}}
 
 
 def test_training_completion_milestones_follow_the_progress_lines_window():

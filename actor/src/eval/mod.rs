@@ -33,7 +33,8 @@ use suite::{Suite, SuiteOptions, evaluate_suite, model_based_avoid, suite_table}
 #[derive(Debug, Args)]
 pub struct EvalArgs {
     /// A checkpoint: a run directory (of `actor train` or `learner serve`), its `checkpoint/`
-    /// directory, or the `online.safetensors` in it. Repeat for several agents.
+    /// directory, its `best/` directory (the weights `actor train`'s periodic evaluations scored
+    /// highest), or the `online.safetensors` in either. Repeat for several agents.
     #[arg(long, value_name = "PATH")]
     pub checkpoint: Vec<PathBuf>,
     /// Names of the checkpoints in the table, in the order of --checkpoint (default: the run

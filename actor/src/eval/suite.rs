@@ -419,6 +419,29 @@ mod tests {
         assert!(t.starts_with("| scenario | agent | planner | driving score |") && t.contains("stalled_car"), "{t}");
     }
 
+    /// Each run's behaviour around its hazard: the planner that sees the closure drives around it
+    /// and back into its lane; the blind one stops short of it, in its lane; at the walker's
+    /// crossing the avoiding driver is slower.
+    #[test]
+    fn behaviour_shows_who_left_the_lane_came_back_and_slowed_for_the_walker() {
+        let mut agents = vec![model_based(), model_based_avoid()];
+        let report = evaluate_suite(&mut agents, &opts(Suite::Hazards, 2)).unwrap();
+        let runs = |a: usize, kind: &str| &report.agents[a].scenarios.iter().find(|s| s.scenario == kind).unwrap().runs;
+        for r in runs(1, "construction") {
+            let b = &r.behaviour;
+            assert!(b.passed_hazard == Some(true) && b.back_on_route == Some(true) && b.max_abs_lateral_m > 2.0, "avoid: {b:?}");
+        }
+        for r in runs(0, "construction") {
+            let b = &r.behaviour;
+            assert!(b.passed_hazard == Some(false) && b.back_on_route == Some(false) && b.max_abs_lateral_m < 1.0, "blind: {b:?}");
+        }
+        let speed = |a: usize| runs(a, "pedestrian_crossing")[0].behaviour.speed_at_hazard_ms.expect("reached the crossing");
+        assert!(speed(1) < speed(0), "avoid {} m/s, blind {} m/s", speed(1), speed(0));
+        let clean = evaluate_suite(&mut agents, &opts(Suite::Clean, 1)).unwrap();
+        let b = &clean.agents[0].scenarios[0].runs[0].behaviour;
+        assert!(b.passed_hazard.is_none() && b.back_on_route.is_none() && b.speed_at_hazard_ms.is_none(), "no hazard: {b:?}");
+    }
+
     #[test]
     fn the_clean_suite_scores_the_seven_routes_and_the_baselines_complete_them() {
         let mut agents = vec![model_based(), model_based_avoid()];
