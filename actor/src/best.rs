@@ -13,7 +13,6 @@ use std::path::{Path, PathBuf};
 
 use agent::checkpoint::{CONFIG, MANIFEST, ONLINE, STATE, manifest_of};
 use anyhow::{Context, Result};
-use learner::telemetry::records::EvalRecord;
 
 /// The directory of the best weights in a run directory.
 pub const DIR: &str = "best";
@@ -28,39 +27,47 @@ pub fn dir(run_dir: &Path) -> PathBuf {
     run_dir.join(DIR)
 }
 
-/// The evaluation that chose the run's `best/`, if it has one (left by an interrupted swap:
-/// `best.old/`). A record that does not read is reported and treated as none: the next
-/// evaluation writes a new one.
+/// The selection score of the evaluation that chose the run's `best/`, if it has one (left by an
+/// interrupted swap: `best.old/`). A record that does not read is reported and treated as none:
+/// the next evaluation writes a new one. (The record is `eval.jsonl`'s line, which the learner
+/// crate defines and `train.rs` writes; only its `selection_score` is read here.)
 #[must_use]
-pub fn current(run_dir: &Path) -> Option<EvalRecord> {
+pub fn current(run_dir: &Path) -> Option<f64> {
     [DIR, OLD].into_iter().map(|d| run_dir.join(d).join(RECORD)).find(|p| p.is_file()).and_then(|path| {
-        let read = fs::read(&path).map_err(anyhow::Error::from).and_then(|b| Ok(serde_json::from_slice::<EvalRecord>(&b)?));
+        let read = fs::read(&path).map_err(anyhow::Error::from).and_then(|b| {
+            let v: serde_json::Value = serde_json::from_slice(&b)?;
+            v["selection_score"].as_f64().ok_or_else(|| anyhow::anyhow!("no number `selection_score`"))
+        });
         read.map_err(|e| tracing::warn!("{}: {e:#}; the next periodic evaluation chooses best/ afresh", path.display())).ok()
     })
 }
 
-/// Whether `record` beats the best so far: a higher selection score (a tie keeps the earlier).
+/// Whether `score` beats the best so far: strictly higher (a tie keeps the earlier).
 #[must_use]
-pub fn beats(record: &EvalRecord, best: Option<&EvalRecord>) -> bool {
-    let score = |r: &EvalRecord| r.selection_score.unwrap_or(f64::NEG_INFINITY);
-    best.is_none_or(|b| score(record) > score(b))
+pub fn beats(score: f64, best: Option<f64>) -> bool {
+    best.is_none_or(|b| score > b)
 }
 
-/// Writes `weights` (safetensors), the run's configuration and `record` as the run's `best/`.
-pub fn save(run_dir: &Path, weights: &[u8], config_toml: &str, record: &EvalRecord) -> Result<PathBuf> {
+/// The learner's counters at the weights kept: `state.json`'s, as a checkpoint has them.
+#[derive(Debug, Clone, Copy)]
+pub struct Counters {
+    pub learner_step: u64,
+    pub env_steps: u64,
+}
+
+/// Writes `weights` (safetensors), the run's configuration, the counters and `record` (the JSON of
+/// the evaluation that chose them) as the run's `best/`.
+pub fn save(run_dir: &Path, weights: &[u8], config_toml: &str, counters: Counters, record: &[u8]) -> Result<PathBuf> {
     let tmp = run_dir.join(TMP);
     if tmp.exists() {
         fs::remove_dir_all(&tmp).with_context(|| format!("removing {}", tmp.display()))?;
     }
     fs::create_dir_all(&tmp).with_context(|| format!("creating {}", tmp.display()))?;
     let state = serde_json::to_vec_pretty(&serde_json::json!({
-        "counters": { "learner_step": record.learner_step, "env_steps": record.env_steps },
+        "counters": { "learner_step": counters.learner_step, "env_steps": counters.env_steps },
     }))?;
-    let record_bytes = serde_json::to_vec_pretty(record)?;
     let manifest = serde_json::to_vec_pretty(&manifest_of([(ONLINE, weights), (CONFIG, config_toml.as_bytes()), (STATE, &state[..])]))?;
-    for (name, bytes) in
-        [(ONLINE, weights), (CONFIG, config_toml.as_bytes()), (STATE, &state), (RECORD, &record_bytes), (MANIFEST, &manifest)]
-    {
+    for (name, bytes) in [(ONLINE, weights), (CONFIG, config_toml.as_bytes()), (STATE, &state), (RECORD, record), (MANIFEST, &manifest)] {
         let path = tmp.join(name);
         let file = fs::File::create(&path).with_context(|| format!("creating {}", path.display()))?;
         use std::io::Write;
@@ -88,23 +95,9 @@ mod tests {
     use crate::testing::{tiny_config, write_checkpoint};
     use sim_core::config::Variant;
 
-    fn record(score: f64, env_steps: u64) -> EvalRecord {
-        EvalRecord {
-            time_secs: 60.0,
-            env_steps,
-            learner_step: env_steps / 4,
-            weights_version: 1,
-            town: "default_town".into(),
-            runs: 4,
-            route_types_mastered: 3,
-            mean_return: 1.0,
-            completion_rate: 0.5,
-            routes: Vec::new(),
-            driving_score: Some(score),
-            hazard_driving_score: None,
-            selection_score: Some(score),
-            best: true,
-        }
+    fn save_scored(run: &Path, weights: &[u8], cfg: &agent::config::RunConfig, score: f64, env_steps: u64) {
+        let record = serde_json::to_vec(&serde_json::json!({"env_steps": env_steps, "selection_score": score})).unwrap();
+        save(run, weights, &cfg.to_toml(), Counters { learner_step: env_steps / 4, env_steps }, &record).unwrap();
     }
 
     #[test]
@@ -114,19 +107,20 @@ mod tests {
         let cfg = tiny_config(Variant::Hybrid);
         write_checkpoint(run, &cfg);
         assert!(current(run).is_none());
-        assert!(beats(&record(0.1, 100), None));
+        assert!(beats(0.1, None));
         let weights = fs::read(run.join("checkpoint").join(ONLINE)).unwrap();
-        save(run, &weights, &cfg.to_toml(), &record(0.4, 1000)).unwrap();
+        save_scored(run, &weights, &cfg, 0.4, 1000);
         let agent = crate::greedy::load_checkpoint(&dir(run)).unwrap();
         assert_eq!((agent.source.env_steps, agent.source.learner_step), (Some(1000), Some(250)));
-        let kept = current(run).unwrap();
-        assert_eq!(kept.selection_score, Some(0.4));
+        let kept = current(run);
+        assert_eq!(kept, Some(0.4));
         // A tie or a lower score does not replace it; a higher one does, and leaves no temporary.
-        assert!(!beats(&record(0.4, 2000), Some(&kept)));
-        assert!(!beats(&record(0.3, 2000), Some(&kept)));
-        assert!(beats(&record(0.5, 2000), Some(&kept)));
-        save(run, &weights, &cfg.to_toml(), &record(0.5, 2000)).unwrap();
-        assert_eq!(current(run).unwrap().env_steps, 2000);
+        assert!(!beats(0.4, kept));
+        assert!(!beats(0.3, kept));
+        assert!(beats(0.5, kept));
+        save_scored(run, &weights, &cfg, 0.5, 2000);
+        assert_eq!(current(run), Some(0.5));
+        assert_eq!(crate::greedy::load_checkpoint(&dir(run)).unwrap().source.env_steps, Some(2000));
         assert!(!run.join(TMP).exists() && !run.join(OLD).exists());
         // Its manifest is checked: damaged weights are refused, not driven.
         fs::write(dir(run).join(ONLINE), b"damaged").unwrap();

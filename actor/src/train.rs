@@ -13,7 +13,10 @@ use anyhow::{Context, Result};
 use clap::Args;
 use learner::serve::{ServeOptions, start};
 
-use crate::eval::periodic::{SEED, score_weights};
+use learner::telemetry::records::{EvalRecord, EvalRouteRecord};
+
+use crate::best::Counters;
+use crate::eval::periodic::{PeriodicScore, SEED, score_weights};
 
 #[derive(Debug, Args)]
 pub struct TrainArgs {
@@ -263,10 +266,10 @@ async fn periodic_evaluation(
             }
             Err(_) => return,
         };
-        let mut record = score.record("default_town", runs);
+        let mut record = eval_record(&score, runs);
         (record.time_secs, record.env_steps, record.learner_step, record.weights_version) =
             (time_secs, env_steps, learner_step, weights.version);
-        record.best = crate::best::beats(&record, best.as_ref());
+        record.best = crate::best::beats(score.selection_score(), best);
         let hazard_part = record.hazard_driving_score.map_or(String::new(), |h| format!(", hazards {h:.2}"));
         reporter.println(&format!(
             "[eval {:>5.1} min] greedy on the 7 routes ({runs} runs each): {}/7 route types completed in at least half their runs, {:.0}% of runs, mean return {:.1}; driving score {:.2}{hazard_part}{}",
@@ -278,8 +281,11 @@ async fn periodic_evaluation(
             if record.best { " (best so far: kept in best/)" } else { "" }
         ));
         if record.best {
-            match crate::best::save(&run_dir, &weights.bytes, &shared.cfg.to_toml(), &record) {
-                Ok(_) => best = Some(record.clone()),
+            let saved = serde_json::to_vec_pretty(&record).map_err(anyhow::Error::from).and_then(|json| {
+                crate::best::save(&run_dir, &weights.bytes, &shared.cfg.to_toml(), Counters { learner_step, env_steps }, &json)
+            });
+            match saved {
+                Ok(_) => best = Some(score.selection_score()),
                 Err(e) => {
                     tracing::warn!("writing best/: {e:#}");
                     record.best = false;
@@ -369,6 +375,31 @@ fn requested_config(args: &TrainArgs) -> Result<Option<PathBuf>> {
     let path = args.run_dir.join("requested-config.toml");
     std::fs::write(&path, cfg.to_toml()).with_context(|| format!("writing {}", path.display()))?;
     Ok(Some(path))
+}
+
+/// The line of `eval.jsonl` for a periodic evaluation on the default town, without the learner's
+/// counters (the caller's).
+fn eval_record(score: &PeriodicScore, runs: u32) -> EvalRecord {
+    EvalRecord {
+        time_secs: 0.0,
+        env_steps: 0,
+        learner_step: 0,
+        weights_version: 0,
+        town: "default_town".into(),
+        runs,
+        route_types_mastered: score.route_types_mastered() as u32,
+        mean_return: score.mean_return(),
+        completion_rate: score.completion_rate(),
+        routes: score
+            .routes()
+            .into_iter()
+            .map(|(route, completed, mean_return)| EvalRouteRecord { route: route.into(), completed: completed as u32, mean_return })
+            .collect(),
+        driving_score: Some(score.clean.driving_score),
+        hazard_driving_score: score.hazards.as_ref().map(|h| h.driving_score),
+        selection_score: Some(score.selection_score()),
+        best: false,
+    }
 }
 
 #[cfg(test)]

@@ -8,7 +8,6 @@ use std::path::PathBuf;
 
 use agent::config::RunConfig;
 use anyhow::Result;
-use learner::telemetry::records::{EvalRecord, EvalRouteRecord};
 use sim_core::town::Town;
 
 use super::run::{Agent, Driver};
@@ -48,31 +47,23 @@ impl PeriodicScore {
         self.clean.scenarios.iter().filter(|s| completed(&s.runs) as f64 >= MASTERED_SHARE * s.runs.len() as f64).count()
     }
 
-    /// The line of `eval.jsonl`, without the learner's counters (the caller's).
+    /// Runs of the seven routes that arrived, over all of them.
     #[must_use]
-    pub fn record(&self, town: &str, runs: u32) -> EvalRecord {
+    pub fn completion_rate(&self) -> f64 {
         let all: Vec<_> = self.clean.scenarios.iter().flat_map(|s| &s.runs).collect();
-        EvalRecord {
-            time_secs: 0.0,
-            env_steps: 0,
-            learner_step: 0,
-            weights_version: 0,
-            town: town.to_owned(),
-            runs,
-            route_types_mastered: self.route_types_mastered() as u32,
-            mean_return: mean(self.clean.scenarios.iter().map(|s| s.mean_return)),
-            completion_rate: all.iter().filter(|r| r.route_completion >= 1.0).count() as f64 / all.len().max(1) as f64,
-            routes: self
-                .clean
-                .scenarios
-                .iter()
-                .map(|s| EvalRouteRecord { route: s.scenario.into(), completed: completed(&s.runs) as u32, mean_return: s.mean_return })
-                .collect(),
-            driving_score: Some(self.clean.driving_score),
-            hazard_driving_score: self.hazards.as_ref().map(|h| h.driving_score),
-            selection_score: Some(self.selection_score()),
-            best: false,
-        }
+        all.iter().filter(|r| r.route_completion >= 1.0).count() as f64 / all.len().max(1) as f64
+    }
+
+    /// The mean over the seven routes of their mean return.
+    #[must_use]
+    pub fn mean_return(&self) -> f64 {
+        mean(self.clean.scenarios.iter().map(|s| s.mean_return))
+    }
+
+    /// Per route: its name, the runs that arrived, its mean return.
+    #[must_use]
+    pub fn routes(&self) -> Vec<(&'static str, usize, f64)> {
+        self.clean.scenarios.iter().map(|s| (s.scenario, completed(&s.runs), s.mean_return)).collect()
     }
 }
 
@@ -124,8 +115,8 @@ mod tests {
         assert!(clean.hazards.is_none());
         assert!(clean.route_types_mastered() <= 7);
         assert_eq!(clean.selection_score(), clean.clean.driving_score);
-        let record = clean.record("default_town", 1);
-        assert_eq!((record.routes.len(), record.driving_score, record.hazard_driving_score), (7, Some(clean.clean.driving_score), None));
+        assert_eq!(clean.routes().len(), 7);
+        assert!((0.0..=1.0).contains(&clean.completion_rate()));
         let both = score_weights(&cfg, &weights, "default_town", 1, SEED, true).unwrap();
         let h = both.hazards.as_ref().expect("the hazard suite was asked for");
         assert_eq!(h.scenarios.len(), 7);
