@@ -90,6 +90,8 @@ def keep_run(a):
         "cores": os.cpu_count(),
         "commit": a.commit,
     }
+    if a.started_from:
+        run["started_from"] = a.started_from
     (out / "run.json").write_text(json.dumps(run, indent=1) + "\n")
     print(f"kept {out}: {run['env_steps']} env steps, {run['learner_step']} updates, {run['train_minutes']} min; best/ at {run['best']}", file=sys.stderr)
 
@@ -273,7 +275,7 @@ def report(a):
                     }
     for name, by_seed in runs.items():
         data["runs"][name] = {str(s): {k: r.get(k) for k in ["hazard_rate", "env_steps", "learner_step", "best", "episodes", "train_minutes",
-                                                                 "session_secs", "cpu", "load_before", "load_after", "commit"]}
+                                                                 "session_secs", "cpu", "load_before", "load_after", "commit", "started_from"]}
                               | {"periodic": [{k: e.get(k) for k in ["time_secs", "env_steps", "driving_score", "hazard_driving_score", "selection_score", "best"]}
                                               for e in r["periodic"]]}
                               for s, r in sorted(by_seed.items())}
@@ -394,6 +396,7 @@ def main():
     k.add_argument("--seed", type=int, required=True)
     k.add_argument("--env-steps-budget", type=int, required=True)
     k.add_argument("--session-secs", type=int, required=True)
+    k.add_argument("--started-from", default=None, help="where a run that did not start from scratch started")
     n = sub.add_parser("rename-run")
     n.add_argument("--out", required=True)
     n.add_argument("--name", required=True)

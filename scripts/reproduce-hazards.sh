@@ -11,7 +11,8 @@
 #      --env-steps; `hz-e2e-best` is the end-to-end search's winner of scripts/reproduce.sh
 #   3. the longer-budget row (group `long`): hz-hybrid-tuned's run of each seed trained on from its
 #      400k-step checkpoint to --long-env-steps (a copy of its run directory; resumed, so the
-#      curve is that run's own)
+#      curve is that run's own; where that directory is gone, from scratch with the same
+#      configuration and seed: experiments/hazards/hz-hybrid-tuned-long/seedS/started-from says which)
 #   4. every final checkpoint and its best/ (chosen by the periodic evaluations) evaluated on both
 #      suites (`hazards`, `clean`) and both towns, `actor eval --runs 5 --seed 0`
 #   5. the tables: scripts/hazard_results.py report (docs/RESULTS.md's hazard sections, the
@@ -71,6 +72,7 @@ eval_every=1
 report_only=0
 runs_dir="runs/hazards"
 build=1
+started_from=""
 while [[ $# -gt 0 ]]; do
     case "$1" in
         --seeds) seeds="${2:?--seeds needs a number}"; shift 2 ;;
@@ -187,7 +189,8 @@ train_and_evaluate() {
     python3 scripts/hazard_results.py keep-run --run-dir "$dir" --out "$out" --name "$name" --preset "$preset" \
         --seed "$seed" --rate "$rate" --env-steps-budget "$budget" --started "$started" \
         --load-before "$load_before" --session-secs "$session_secs" \
-        --commit "$(git rev-parse --short HEAD 2>/dev/null || echo unknown)"
+        --commit "$(git rev-parse --short HEAD 2>/dev/null || echo unknown)" \
+        ${started_from:+--started-from "$started_from"}
 }
 
 if [[ "$report_only" == 0 ]]; then
@@ -238,14 +241,26 @@ if [[ "$report_only" == 0 ]]; then
                 echo "== $long_name seed $seed: waits for $tuned seed $seed" >&2
                 continue
             fi
-            if [[ ! -d "$dir" ]]; then
-                echo "== $long_name seed $seed: starting from a copy of $from" >&2
-                mkdir -p "$runs_dir/$long_name"
-                cp -rL "$from" "$dir.tmp" && mv "$dir.tmp" "$dir"
-            fi
+            origin_file="$results/$long_name/seed$seed/started-from"
             mkdir -p "$results/$long_name/seed$seed"
+            if [[ ! -d "$dir" ]]; then
+                mkdir -p "$runs_dir/$long_name"
+                if [[ -d "$from/checkpoint" ]]; then
+                    echo "== $long_name seed $seed: starting from a copy of $from" >&2
+                    cp -rL "$from" "$dir.tmp" && mv "$dir.tmp" "$dir"
+                    echo "a copy of $from" >"$origin_file"
+                else
+                    # The run directories are not kept (a new machine, or a cleaned runs/): the same
+                    # configuration and seed from scratch; its first 400k env steps are then not
+                    # $tuned's run, which the tables' independent draws never assumed they were.
+                    echo "== $long_name seed $seed: $from is gone; training from scratch with $tuned's configuration and seed" >&2
+                    echo "scratch ($from was gone)" >"$origin_file"
+                fi
+            fi
             cp "$results/$tuned/seed$seed/config.toml" "$results/$long_name/seed$seed/config.toml"
+            started_from=$(cat "$origin_file" 2>/dev/null || echo "a copy of $from")
             train_and_evaluate "$long_name" "$tuned_preset" "$tuned_extra" "$rate" "$seed" "$long_env_steps"
+            started_from=""
         done
     fi
 fi

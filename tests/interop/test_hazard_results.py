@@ -109,3 +109,22 @@ def test_the_report_fills_its_sections_keeps_the_prose_and_the_main_results(tmp_
     assert (tmp_path / "figures" / "hazards-kinds.svg").read_text().startswith("<svg")
     hz.report(args)
     assert md.read_text() == text, "a second report replaces the sections, it does not append them"
+
+
+def test_keep_run_says_where_a_run_that_did_not_start_from_scratch_started(tmp_path):
+    run_dir, out = tmp_path / "runs" / "seed1", tmp_path / "hazards" / "hz-hybrid-tuned-long" / "seed1"
+    (run_dir / "checkpoint").mkdir(parents=True)
+    (run_dir / "checkpoint" / "state.json").write_text(json.dumps({"counters": {"env_steps": 1600000, "learner_step": 12500}}))
+    (run_dir / "train.jsonl").write_text(json.dumps({"time_secs": 120.0}) + "\n")
+    (run_dir / "episodes.jsonl").write_text("".join(json.dumps({"episode_index": i, "arrived": True, "time_secs": i, "env_steps": i}) + "\n" for i in range(3)))
+    for suite in hz.SUITES:
+        for town in hz.TOWNS:
+            write_eval(out, suite, town, [agent_report("model-based", {}), agent_report("last", {})])
+    common = {"run_dir": str(run_dir), "out": str(out), "name": "hz-hybrid-tuned-long", "preset": "hybrid-tuned", "rate": "0.5",
+              "started": "2026-12-03T00:00:00Z", "load_before": "0 0 0", "commit": "abc", "seed": 1, "env_steps_budget": 1600000,
+              "session_secs": 120}
+    hz.keep_run(type("A", (), {**common, "started_from": "scratch (runs/hazards/hz-hybrid-tuned/seed1 was gone)"}))
+    kept = json.loads((out / "run.json").read_text())
+    assert kept["started_from"].startswith("scratch") and kept["env_steps"] == 1600000
+    hz.keep_run(type("A", (), {**common, "started_from": None}))
+    assert "started_from" not in json.loads((out / "run.json").read_text()), "a run from scratch says nothing"
