@@ -15,7 +15,9 @@
 #      configuration and seed: experiments/hazards/hz-hybrid-tuned-long/seedS/started-from says which)
 #   4. every final checkpoint and its best/ (chosen by the periodic evaluations) evaluated on both
 #      suites (`hazards`, `clean`) and both towns, `actor eval --runs 5 --seed 0`
-#   5. the tables: scripts/hazard_results.py report (docs/RESULTS.md's hazard sections, the
+#   5. the episode figure: every agent's run around the same stalled cars (scripts/episode_figure.py,
+#      docs/figures/hazards-episode.svg; its runs kept in experiments/hazards/episode/)
+#   6. the tables: scripts/hazard_results.py report (docs/RESULTS.md's hazard sections, the
 #      "hazards" key of experiments/results.json, docs/figures/hazards-*.svg)
 #
 # Each run keeps what the tables need in experiments/hazards/AGENT/seedS/ (its evaluations, its
@@ -263,6 +265,30 @@ if [[ "$report_only" == 0 ]]; then
             started_from=""
         done
     fi
+    # 5. The episode figure's runs: every agent around the same hazards (the suite's seeds on
+    # default_town), each agent's lowest finished seed whose run directory is here, last checkpoint.
+    fig_args=()
+    for v in "${agents[@]}" "${long[@]}"; do
+        name="${v%%|*}"
+        for seed in $(seq 1 "$seeds"); do
+            d="$runs_dir/$name/seed$seed"
+            if [[ -f "$results/$name/seed$seed/run.json" && -f "$d/checkpoint/online.safetensors" ]]; then
+                fig_args+=(--checkpoint "$d" --name "$name, seed $seed")
+                break
+            fi
+        done
+    done
+    if [[ ${#fig_args[@]} -gt 0 ]]; then
+        echo "== the episode figure's runs: $(( ${#fig_args[@]} / 4 )) checkpoints and the baselines, hazard suite on default_town" >&2
+        "$actor" eval --suite hazards --town default_town --runs "$runs" --seed 0 "${fig_args[@]}" \
+            --trajectories-out "$runs_dir/trajectories.jsonl" >/dev/null
+        python3 scripts/episode_figure.py --trajectories "$runs_dir/trajectories.jsonl" --scenario stalled_car \
+            --keep "$results/episode/stalled_car.jsonl" --out docs/figures/hazards-episode.svg
+    fi
+fi
+if [[ "$report_only" == 1 && -f "$results/episode/stalled_car.jsonl" ]]; then
+    python3 scripts/episode_figure.py --trajectories "$results/episode/stalled_car.jsonl" --scenario stalled_car \
+        --out docs/figures/hazards-episode.svg
 fi
 
 echo "== report: docs/RESULTS.md (hazard sections), experiments/results.json (\"hazards\"), docs/figures/hazards-*.svg" >&2

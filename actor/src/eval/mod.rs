@@ -14,7 +14,7 @@
 
 use std::path::{Path, PathBuf};
 
-use anyhow::{Result, bail};
+use anyhow::{Context, Result, bail};
 use clap::Args;
 
 pub mod behaviour;
@@ -23,6 +23,7 @@ pub mod report;
 pub mod run;
 pub mod score;
 pub mod suite;
+pub mod trajectory;
 
 use crate::greedy::{EPSILON, GreedyAgent, load_checkpoint};
 use crate::routes::{parse_routes, town_by_name_or_file};
@@ -73,6 +74,12 @@ pub struct EvalArgs {
     /// not apply.
     #[arg(long, value_name = "SUITE")]
     pub suite: Option<String>,
+    /// With --suite: write every run's trajectory to this file, one JSON object per line (agent,
+    /// scenario, seed, the route's centre line, the ego's `[x, y, speed]` at every step, the
+    /// hazard's objects at the start and the end, infractions, driving score), for pictures such
+    /// as docs/figures/hazards-episode.svg (`scripts/episode_figure.py`).
+    #[arg(long, value_name = "FILE", requires = "suite")]
+    pub trajectories_out: Option<PathBuf>,
 }
 
 /// The name of a checkpoint in the table: its run directory's name.
@@ -151,7 +158,15 @@ fn run_suite(args: &EvalArgs, name: &str) -> Result<()> {
     let mut agents = vec![model_based(), model_based_avoid()];
     add_checkpoints(args, &mut agents)?;
     let town = town_by_name_or_file(&args.town)?;
-    let opts = SuiteOptions { suite, runs: args.runs, seed: args.seed, traffic: args.traffic, town, progress: true };
+    let opts = SuiteOptions {
+        suite,
+        runs: args.runs,
+        seed: args.seed,
+        traffic: args.traffic,
+        town,
+        progress: true,
+        trajectories: args.trajectories_out.is_some(),
+    };
     eprintln!(
         "scoring {} agent(s) on suite `{}` of {} × {} run(s) (seeds {}..), greedy (ε = {EPSILON})",
         agents.len(),
@@ -161,6 +176,16 @@ fn run_suite(args: &EvalArgs, name: &str) -> Result<()> {
         opts.seed
     );
     let report = evaluate_suite(&mut agents, &opts)?;
+    if let Some(path) = &args.trajectories_out {
+        let mut lines = String::new();
+        for t in &report.trajectories {
+            lines.push_str(&serde_json::to_string(t)?);
+            lines.push('\n');
+        }
+        agent::atomic_write::write_atomic(path, lines.as_bytes(), None)
+            .with_context(|| format!("writing the trajectories to {}", path.display()))?;
+        eprintln!("wrote {} trajectories to {}", report.trajectories.len(), path.display());
+    }
     emit(args, &serde_json::to_string(&report)?, || suite_table(&report, args.markdown))
 }
 

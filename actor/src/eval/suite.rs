@@ -24,6 +24,7 @@ use crate::episode::Episode;
 use crate::eval::behaviour::BehaviourWatch;
 use crate::eval::run::{Agent, Driver, eval_env_config};
 use crate::eval::score::{Infraction, ProgressWatch, RunEnd, RunScore, score_run};
+use crate::eval::trajectory::{Trajectory, TrajectoryRecorder};
 use crate::greedy::greedy_actions;
 use crate::policy::Policy;
 
@@ -103,6 +104,8 @@ pub struct SuiteOptions {
     pub traffic: Option<usize>,
     pub town: std::sync::Arc<sim_core::town::Town>,
     pub progress: bool,
+    /// Keep every run's trajectory (`SuiteReport::trajectories`).
+    pub trajectories: bool,
 }
 
 /// One scenario's scores for one agent.
@@ -139,6 +142,9 @@ pub struct SuiteReport {
     pub town: String,
     pub runs: u32,
     pub agents: Vec<SuiteAgentReport>,
+    /// Every run's trajectory, agent by agent and scenario by scenario, when asked for.
+    #[serde(skip)]
+    pub trajectories: Vec<Trajectory>,
 }
 
 fn mean(xs: impl Iterator<Item = f64>) -> f64 {
@@ -156,6 +162,7 @@ pub fn evaluate_suite(agents: &mut [Agent], opts: &SuiteOptions) -> Result<Suite
     let total = agents.len() * specs.len();
     let mut done = 0usize;
     let mut reports = Vec::new();
+    let mut trajectories = Vec::new();
     for agent in agents.iter_mut() {
         let planner = planner_of(agent);
         let camera = match &agent.driver {
@@ -176,8 +183,12 @@ pub fn evaluate_suite(agents: &mut [Agent], opts: &SuiteOptions) -> Result<Suite
                 .collect::<Result<_, _>>()
                 .context("creating the environments")?;
             let t = Instant::now();
-            let runs = drive_scored(&mut agent.driver, &mut envs, opts.seed, spec.scenario)
+            let (runs, recorded) = drive_scored(&mut agent.driver, &mut envs, opts.seed, spec.scenario, opts.trajectories)
                 .with_context(|| format!("{} on {}", agent.name, spec.name))?;
+            trajectories.extend(recorded.into_iter().zip(&envs).zip(&runs).map(|((rec, env), r)| {
+                let infractions: Vec<&'static str> = r.infractions.iter().map(|i| i.name()).collect();
+                rec.finish(env, &agent.name, spec.name, r.seed, (&infractions, r.driving_score))
+            }));
             let r = ScenarioReport {
                 scenario: spec.name,
                 driving_score: mean(runs.iter().map(|r| r.driving_score)),
@@ -220,12 +231,18 @@ pub fn evaluate_suite(agents: &mut [Agent], opts: &SuiteOptions) -> Result<Suite
             scenarios: scenario_reports,
         });
     }
-    Ok(SuiteReport { suite: opts.suite.name(), town: opts.town.map.name.clone(), runs: opts.runs, agents: reports })
+    Ok(SuiteReport { suite: opts.suite.name(), town: opts.town.map.name.clone(), runs: opts.runs, agents: reports, trajectories })
 }
 
 /// Drives one run per environment (run k with seed `seed + k`) in lockstep, ending a run when it
-/// is blocked, and scores each.
-fn drive_scored(driver: &mut Driver, envs: &mut [Env], seed: u64, scenario: Scenario) -> Result<Vec<RunScore>> {
+/// is blocked, and scores each; with `trace`, also records where each drove (else no recorders).
+fn drive_scored(
+    driver: &mut Driver,
+    envs: &mut [Env],
+    seed: u64,
+    scenario: Scenario,
+    trace: bool,
+) -> Result<(Vec<RunScore>, Vec<TrajectoryRecorder>)> {
     for (k, env) in envs.iter_mut().enumerate() {
         env.reset(seed + k as u64, scenario)?;
     }
@@ -233,8 +250,12 @@ fn drive_scored(driver: &mut Driver, envs: &mut [Env], seed: u64, scenario: Scen
     let mut episodes = vec![Episode::default(); n];
     let mut watches = vec![ProgressWatch::default(); n];
     let mut behaviours = vec![BehaviourWatch::default(); n];
-    for (b, env) in behaviours.iter_mut().zip(envs.iter()) {
-        b.record(env);
+    let mut recorders = if trace { vec![TrajectoryRecorder::default(); n] } else { Vec::new() };
+    for (k, env) in envs.iter().enumerate() {
+        behaviours[k].record(env);
+        if let Some(t) = recorders.get_mut(k) {
+            t.record(env);
+        }
     }
     let mut ends: Vec<Option<RunEnd>> = vec![None; n];
     loop {
@@ -254,6 +275,9 @@ fn drive_scored(driver: &mut Driver, envs: &mut [Env], seed: u64, scenario: Scen
             let r = env.step(action)?;
             episodes[k].record(&r);
             behaviours[k].record(env);
+            if let Some(t) = recorders.get_mut(k) {
+                t.record(env);
+            }
             let length = env.route.length();
             let blocked = watches[k].record(r.info.progress * length, env.cfg.dt);
             if r.terminated || r.truncated || blocked {
@@ -269,7 +293,7 @@ fn drive_scored(driver: &mut Driver, envs: &mut [Env], seed: u64, scenario: Scen
             }
         }
     }
-    Ok(ends
+    let scores = ends
         .into_iter()
         .zip(&episodes)
         .zip(envs.iter())
@@ -293,7 +317,8 @@ fn drive_scored(driver: &mut Driver, envs: &mut [Env], seed: u64, scenario: Scen
                 behaviour: behaviour.finish(),
             }
         })
-        .collect())
+        .collect();
+    Ok((scores, recorders))
 }
 
 /// The readable table (or Markdown): one row per scenario and agent, then each agent overall.
@@ -382,7 +407,15 @@ mod tests {
     use sim_core::config::Variant;
 
     fn opts(suite: Suite, runs: u32) -> SuiteOptions {
-        SuiteOptions { suite, runs, seed: 0, traffic: None, town: sim_core::town::Town::default_town(), progress: false }
+        SuiteOptions {
+            suite,
+            runs,
+            seed: 0,
+            traffic: None,
+            town: sim_core::town::Town::default_town(),
+            progress: false,
+            trajectories: false,
+        }
     }
 
     #[test]
@@ -417,6 +450,37 @@ mod tests {
         assert!(ped(blind) >= 1 && ped(avoid) == 0, "blind {} avoid {}", ped(blind), ped(avoid));
         let t = suite_table(&report, true);
         assert!(t.starts_with("| scenario | agent | planner | driving score |") && t.contains("stalled_car"), "{t}");
+    }
+
+    /// `--trajectories-out`'s records: one per run, the ego where the simulator had it, the
+    /// stalled car standing still on the route; none unless asked for.
+    #[test]
+    fn trajectories_follow_each_run_and_show_the_stalled_car_where_the_route_meets_it() {
+        let mut agents = vec![model_based(), model_based_avoid()];
+        assert!(evaluate_suite(&mut agents, &opts(Suite::Hazards, 1)).unwrap().trajectories.is_empty());
+        let report = evaluate_suite(&mut agents, &SuiteOptions { trajectories: true, ..opts(Suite::Hazards, 2) }).unwrap();
+        assert_eq!(report.trajectories.len(), 2 * SUITE_KINDS.len() * 2, "agents × kinds × runs");
+        for t in &report.trajectories {
+            let a = report.agents.iter().find(|a| a.name == t.agent).unwrap();
+            let r = a.scenarios.iter().find(|s| s.scenario == t.scenario).unwrap().runs.iter().find(|r| r.seed == t.seed).unwrap();
+            assert_eq!(t.ego.len() as u32, r.steps + 1, "the reset and every step");
+            assert_eq!(t.driving_score.to_bits(), r.driving_score.to_bits());
+            assert_eq!(t.hazard, r.hazard);
+            let start = t.route[0];
+            assert!(
+                (t.ego[0][0] - start[0]).hypot(t.ego[0][1] - start[1]) < 5.0,
+                "starts at the route's origin: {:?} vs {start:?}",
+                t.ego[0]
+            );
+        }
+        let stalled = report.trajectories.iter().find(|t| t.scenario == "stalled_car" && t.agent == "model-based").unwrap();
+        let car = |bodies: &[crate::eval::trajectory::Body]| bodies.iter().find(|b| b.kind == "hazard_car").unwrap().centre;
+        assert_eq!(car(&stalled.bodies_start), car(&stalled.bodies_end), "a stalled car does not move");
+        let p = stalled.hazard_point.unwrap();
+        let c = car(&stalled.bodies_start);
+        assert!((p[0] - c[0]).hypot(p[1] - c[1]) < 3.0, "the car stands at the hazard point: {c:?} vs {p:?}");
+        let walker = report.trajectories.iter().find(|t| t.scenario == "pedestrian_crossing").unwrap();
+        assert!(walker.bodies_start.iter().any(|b| b.kind == "walker") && walker.bodies_start.iter().any(|b| b.kind == "parked_car"));
     }
 
     /// Each run's behaviour around its hazard: the planner that sees the closure drives around it
