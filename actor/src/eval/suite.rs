@@ -185,10 +185,8 @@ pub fn evaluate_suite(agents: &mut [Agent], opts: &SuiteOptions) -> Result<Suite
             let t = Instant::now();
             let (runs, recorded) = drive_scored(&mut agent.driver, &mut envs, opts.seed, spec.scenario, opts.trajectories)
                 .with_context(|| format!("{} on {}", agent.name, spec.name))?;
-            trajectories.extend(recorded.into_iter().zip(&envs).zip(&runs).map(|((rec, env), r)| {
-                let infractions: Vec<&'static str> = r.infractions.iter().map(|i| i.name()).collect();
-                rec.finish(env, &agent.name, spec.name, r.seed, (&infractions, r.driving_score))
-            }));
+            trajectories
+                .extend(recorded.into_iter().zip(&envs).zip(&runs).map(|((rec, env), r)| rec.finish(env, &agent.name, spec.name, r)));
             let r = ScenarioReport {
                 scenario: spec.name,
                 driving_score: mean(runs.iter().map(|r| r.driving_score)),

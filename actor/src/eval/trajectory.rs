@@ -9,6 +9,8 @@ use sim_core::env::Env;
 use sim_core::hazards::PropKind;
 use sim_core::math::Vec2;
 
+use crate::eval::score::RunScore;
+
 /// Parked cars this close to the hazard point are drawn (the car a walker steps out behind).
 const PARKED_NEAR_M: f32 = 60.0;
 
@@ -95,21 +97,21 @@ impl TrajectoryRecorder {
         self.ego.push([p[0], p[1], cm(env.ego.speed)]);
     }
 
-    /// The run's trajectory, once it has ended in `env`.
+    /// The trajectory of `run`, which has ended in `env`.
     #[must_use]
-    pub fn finish(self, env: &Env, agent: &str, scenario: &'static str, seed: u64, score: (&[&'static str], f64)) -> Trajectory {
+    pub fn finish(self, env: &Env, agent: &str, scenario: &'static str, run: &RunScore) -> Trajectory {
         Trajectory {
             agent: agent.to_owned(),
             scenario,
-            seed,
+            seed: run.seed,
             hazard: env.hazard.as_ref().map(|h| h.kind.name()),
             hazard_point: env.hazard.as_ref().map(|h| point(env.route.path.point_at(h.s))),
             route: env.route.path.points().iter().map(|&p| point(p)).collect(),
             ego: self.ego,
             bodies_start: self.start,
             bodies_end: bodies(env),
-            infractions: score.0.to_vec(),
-            driving_score: score.1,
+            infractions: run.infractions.iter().map(|i| i.name()).collect(),
+            driving_score: run.driving_score,
         }
     }
 }
