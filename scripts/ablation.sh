@@ -78,7 +78,7 @@ else
 fi
 
 cd "$(dirname "$0")/.."
-trap 'echo; echo "ablation.sh: interrupted — run the same command again to resume." >&2; exit 130' INT TERM
+resume_on_interrupt ablation.sh
 bin="${CARGO_TARGET_DIR:-target}/release"
 run() {
     echo "+ $*" >&2

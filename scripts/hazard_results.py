@@ -16,11 +16,9 @@ Standard library only, so that it runs wherever the project's scripts run.
 
 import argparse
 import json
-import os
 import random
 import shutil
 import sys
-import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -49,9 +47,7 @@ def keep_run(a):
     for name in ["eval.jsonl", "train.jsonl"]:
         if (run_dir / name).exists():
             shutil.copyfile(run_dir / name, out / name)
-    episodes = (run_dir / "episodes.jsonl").read_text().splitlines()
-    step = max(1, -(-len(episodes) // main_results.MAX_EPISODES_KEPT))
-    (out / "episodes.jsonl").write_text("".join(line + "\n" for line in episodes[::step]))
+    episodes, episodes_kept = main_results.keep_episodes(run_dir, out)
     # The baselines drive the same seeds in every evaluation: kept once, left out of the run's.
     for (suite, town), path in eval_files(out).items():
         ev = json.loads(path.read_text())
@@ -78,17 +74,8 @@ def keep_run(a):
         "learner_step": counters.get("last", {}).get("learner_step"),
         "best": counters.get("best"),
         "episodes": len(episodes),
-        "episodes_kept": len(episodes[::step]),
-        "training_completion_first_reached": main_results.completion_milestones([json.loads(line) for line in episodes if line.strip()]),
-        "train_minutes": round(train[-1]["time_secs"] / 60, 2) if train else None,
-        "session_secs": a.session_secs,
-        "started": a.started,
-        "finished": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
-        "load_before": a.load_before,
-        "load_after": " ".join(Path("/proc/loadavg").read_text().split()[:3]),
-        "cpu": main_results.cpu_model(),
-        "cores": os.cpu_count(),
-        "commit": a.commit,
+        "episodes_kept": episodes_kept,
+        **main_results.how_it_ran(a, episodes, train),
     }
     if a.started_from:
         run["started_from"] = a.started_from

@@ -14,6 +14,27 @@ require_positive() {
     done
 }
 
+# require_known SCRIPT ONLY EXTRA AGENT_ROW...: exits with status 2 and a message listing the valid
+# names unless every comma-separated name in ONLY (an --agents value) is the name of one of the
+# AGENT_ROWs (NAME|...) or one of the space-separated EXTRA names.
+require_known() {
+    local script="$1" only="$2" known=" $3 " v name
+    shift 3
+    for v in "$@"; do known+="${v%%|*} "; done
+    for name in ${only//,/ }; do
+        if [[ "$known" != *" $name "* ]]; then
+            echo "$script: --agents: unknown agent \`$name\`; expected some of:$known" >&2
+            exit 2
+        fi
+    done
+}
+
+# resume_on_interrupt SCRIPT: on Ctrl-C or TERM, says how to resume and exits with status 130.
+resume_on_interrupt() {
+    # shellcheck disable=SC2064  # the script's name is fixed now
+    trap "echo; echo \"$1: interrupted — run the same command again to resume.\" >&2; exit 130" INT TERM
+}
+
 # agents_of GROUP ARRAY: fills ARRAY with the agents of experiments/agents.txt in GROUP (main,
 # search, ablation), in the file's order, each as NAME|PRESET|TOML|WHAT; exits with status 2,
 # naming the file and the group, when it has none.

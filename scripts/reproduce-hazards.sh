@@ -108,17 +108,10 @@ for r in ${rates//,/ }; do
         exit 2
     fi
 done
-known=" rates long "
-for v in "${agents[@]}" "${long[@]}"; do known+="${v%%|*} "; done
-for name in ${only//,/ }; do
-    if [[ "$known" != *" $name "* ]]; then
-        echo "reproduce-hazards.sh: --agents: unknown agent \`$name\`; expected some of:$known" >&2
-        exit 2
-    fi
-done
+require_known reproduce-hazards.sh "$only" "rates long" "${agents[@]}" "${long[@]}"
 
 cd "$(dirname "$0")/.."
-trap 'echo; echo "reproduce-hazards.sh: interrupted — run the same command again to resume." >&2; exit 130' INT TERM
+resume_on_interrupt reproduce-hazards.sh
 
 bin="${CARGO_TARGET_DIR:-target}/release"
 actor="$bin/actor"

@@ -132,17 +132,10 @@ if ! [[ "$seeds" =~ ^[0-9]+$ && "$env_steps" =~ ^[0-9]+$ && "$runs" =~ ^[0-9]+$ 
     echo "reproduce.sh: --seeds, --env-steps and --runs take whole numbers" >&2
     exit 2
 fi
-known=" search e2e-best "
-for v in "${agents[@]}" "${search[@]}"; do known+="${v%%|*} "; done
-for name in ${only//,/ }; do
-    if [[ "$known" != *" $name "* ]]; then
-        echo "reproduce.sh: --agents: unknown agent \`$name\`; expected some of:$known" >&2
-        exit 2
-    fi
-done
+require_known reproduce.sh "$only" "search e2e-best" "${agents[@]}" "${search[@]}"
 
 cd "$(dirname "$0")/.."
-trap 'echo; echo "reproduce.sh: interrupted — run the same command again to resume." >&2; exit 130' INT TERM
+resume_on_interrupt reproduce.sh
 
 bin="${CARGO_TARGET_DIR:-target}/release"
 actor="$bin/actor"

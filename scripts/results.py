@@ -70,6 +70,32 @@ def cpu_model():
     return "unknown"
 
 
+def keep_episodes(run_dir, out):
+    """Copies a run's episodes.jsonl into `out` thinned to at most MAX_EPISODES_KEPT evenly spaced
+    ones (enough for the curves, small enough to commit); returns (every line, the number kept)."""
+    episodes = (run_dir / "episodes.jsonl").read_text().splitlines()
+    step = max(1, -(-len(episodes) // MAX_EPISODES_KEPT))
+    (out / "episodes.jsonl").write_text("".join(line + "\n" for line in episodes[::step]))
+    return episodes, len(episodes[::step])
+
+
+def how_it_ran(a, episodes, train):
+    """The part of a kept run's run.json that says how fast it learned, when and how long it ran,
+    and on what machine under what load (`a`: keep-run's arguments)."""
+    return {
+        "training_completion_first_reached": completion_milestones([json.loads(line) for line in episodes if line.strip()]),
+        "train_minutes": round(train[-1]["time_secs"] / 60, 2) if train else None,
+        "session_secs": a.session_secs,
+        "started": a.started,
+        "finished": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
+        "load_before": a.load_before,
+        "load_after": " ".join(Path("/proc/loadavg").read_text().split()[:3]),
+        "cpu": cpu_model(),
+        "cores": os.cpu_count(),
+        "commit": a.commit,
+    }
+
+
 def completion_milestones(episodes, window=100, shares=(0.2, 0.4, 0.6)):
     """When the share of arrivals among the last `window` training episodes (what `actor train`'s
     progress line shows as "completed") first reached each share: {share: [minutes, env steps]}."""
@@ -94,11 +120,7 @@ def keep_run(a):
     for name in ["eval.jsonl", "train.jsonl"]:
         if (run_dir / name).exists():
             shutil.copyfile(run_dir / name, out / name)
-    # Episodes thinned to at most MAX_EPISODES_KEPT evenly spaced ones: enough for the curves,
-    # small enough to commit.
-    episodes = (run_dir / "episodes.jsonl").read_text().splitlines()
-    step = max(1, -(-len(episodes) // MAX_EPISODES_KEPT))
-    (out / "episodes.jsonl").write_text("".join(l + "\n" for l in episodes[::step]))
+    episodes, episodes_kept = keep_episodes(run_dir, out)
     train = read_jsonl(run_dir / "train.jsonl")
     ev = json.loads((out / "eval-default_town.json").read_text())
     ck = next(x for x in ev["agents"] if x["kind"] == "checkpoint")["checkpoint"]
@@ -110,17 +132,8 @@ def keep_run(a):
         "env_steps": ck.get("env_steps"),
         "learner_step": ck.get("learner_step"),
         "episodes": ck.get("episodes"),
-        "episodes_kept": len(episodes[::step]),
-        "training_completion_first_reached": completion_milestones([json.loads(l) for l in episodes if l.strip()]),
-        "train_minutes": round(train[-1]["time_secs"] / 60, 2) if train else None,
-        "session_secs": a.session_secs,
-        "started": a.started,
-        "finished": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
-        "load_before": a.load_before,
-        "load_after": " ".join(Path("/proc/loadavg").read_text().split()[:3]),
-        "cpu": cpu_model(),
-        "cores": os.cpu_count(),
-        "commit": a.commit,
+        "episodes_kept": episodes_kept,
+        **how_it_ran(a, episodes, train),
     }
     (out / "run.json").write_text(json.dumps(run, indent=1) + "\n")
     print(f"kept {out}: {run['env_steps']} env steps, {run['learner_step']} updates, {run['train_minutes']} min", file=sys.stderr)
