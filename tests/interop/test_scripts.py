@@ -1,0 +1,20 @@
+"""The experiment scripts refuse a mistake before they build or train anything: an unknown agent
+named by --agents gets its name and the valid ones back, with status 2 (scripts/lib.sh)."""
+
+import subprocess
+
+import pytest
+
+from conftest import ROOT
+
+
+@pytest.mark.parametrize("args, script", [
+    (["scripts/reproduce.sh", "--agents", "hybrid-tuned,no-such-agent", "--no-build"], "reproduce.sh"),
+    (["scripts/reproduce.sh", "--experiment", "hazards", "--agents", "no-such-agent", "--no-build"], "reproduce-hazards.sh"),
+])
+def test_an_unknown_agent_is_refused_by_name_with_the_valid_ones(args, script):
+    p = subprocess.run(["bash", *args], cwd=ROOT, capture_output=True, text=True, timeout=60)
+    assert p.returncode == 2, p.stderr
+    assert f"{script}: --agents: unknown agent `no-such-agent`; expected some of:" in p.stderr
+    assert "hybrid-tuned" in p.stderr.split("expected some of:")[1], "the valid names are listed"
+    assert "hybrid-tuned," not in p.stderr, "the names are checked one by one"
