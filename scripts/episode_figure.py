@@ -55,7 +55,7 @@ def polyline(points, f, ox, oy):
     return " ".join("{:.1f},{:.1f}".format(*px_of(*to_panel(f, p[0], p[1]), ox, oy)) for p in points)
 
 
-def body_svg(b, f, ox, oy):
+def body_svg(b, f, ox, oy, outline=None):
     cx, cy = b["centre"]
     if b["kind"] == "walker":
         x, y = px_of(*to_panel(f, cx, cy), ox, oy)
@@ -66,6 +66,8 @@ def body_svg(b, f, ox, oy):
     for sx, sy in [(1, 1), (-1, 1), (-1, -1), (1, -1)]:
         lx, ly = sx * hx, sy * hy
         corners.append((cx + lx * math.cos(a) - ly * math.sin(a), cy + lx * math.sin(a) + ly * math.cos(a)))
+    if outline:
+        return f'<polygon points="{polyline(corners, f, ox, oy)}" fill="none" stroke="{outline}" stroke-width="1.5" stroke-dasharray="3 2"/>'
     return f'<polygon points="{polyline(corners, f, ox, oy)}" fill="{BODY_FILL.get(b["kind"], "#999")}" stroke="#333" stroke-width="0.5"/>'
 
 
@@ -90,15 +92,16 @@ def figure(runs, scenario, title):
     seeds = sorted({r["seed"] for r in runs})
     w = (WINDOW[1] - WINDOW[0]) * SCALE
     h = 2 * HALF_HEIGHT * SCALE
-    legend_w = 330
-    top = 46
+    legend_w = 520
+    top = 62
     row_h = h + 34
     width, height = int(w + legend_w + 30), int(top + row_h * len(seeds) + 10)
     out = [f'<svg xmlns="http://www.w3.org/2000/svg" width="{width}" height="{height}" font-family="sans-serif" font-size="12">',
            '<rect width="100%" height="100%" fill="white"/>',
            f'<text x="10" y="18" font-size="14" font-weight="bold">{title}</text>',
            f'<text x="10" y="36" fill="#555">The route runs left to right; the hazard point at 0 m. Grey band: the route\'s lane. '
-           'Red: the hazard\'s car; grey: parked cars. × where a run ended in a collision.</text>']
+           'Red: the hazard\'s car; grey: parked cars. × where a run ended in a collision;</text>',
+           '<text x="10" y="52" fill="#555">dashed boxes in a run\'s colour: the traffic within 12 m of it at its end.</text>']
     for row, seed in enumerate(seeds):
         ox, oy = 10, top + row * row_h + 16
         out.append(f'<text x="{ox}" y="{oy - 4}" font-weight="bold">seed {seed}</text>')
@@ -118,6 +121,9 @@ def figure(runs, scenario, title):
                 continue
             c = COLOURS[k % len(COLOURS)]
             out.append(f'<polyline points="{polyline(run["ego"], f, ox, oy)}" fill="none" stroke="{c}" stroke-width="2" opacity="0.85"/>')
+            for b in run["bodies_end"]:
+                if b["kind"] == "traffic":
+                    out.append(body_svg(b, f, ox, oy, outline=c))
             if any("collision" in i for i in run["infractions"]):
                 x, y = px_of(*to_panel(f, run["ego"][-1][0], run["ego"][-1][1]), ox, oy)
                 out.append(f'<text x="{x:.1f}" y="{y + 5:.1f}" text-anchor="middle" font-size="16" font-weight="bold" fill="{c}">×</text>')

@@ -36,6 +36,9 @@ def test_a_panel_turns_the_route_to_run_left_to_right_through_the_hazard_point()
 def test_every_seed_gets_a_panel_and_every_agent_its_line_and_score(tmp_path):
     runs = [run(agent, seed, 0.3 * seed, score=0.25 if agent == "blind" else 1.0, infractions=["vehicle_collision"] if agent == "blind" else [])
             for seed in (0, 1, 2) for agent in ("blind", "avoid")]
+    for r in runs:
+        if r["agent"] == "blind":
+            r["bodies_end"].append({"kind": "traffic", "centre": [3.0, 3.0], "half": [2.25, 1.0], "angle": 0.0})
     runs.append(run("blind", 0, 0.0, scenario="construction"))
     path = tmp_path / "t.jsonl"
     path.write_text("".join(json.dumps(r) + "\n" for r in runs))
@@ -46,6 +49,7 @@ def test_every_seed_gets_a_panel_and_every_agent_its_line_and_score(tmp_path):
     assert svg.startswith("<svg") and svg.count(">seed ") == 3
     assert svg.count("blind: 0.25 (vehicle_collision)") == 3 and svg.count("avoid: 1.00 (arrived, no infraction)") == 3
     assert svg.count("×</text>") == 3, "a collision is marked where the run ended"
+    assert svg.count('stroke-dasharray="3 2"') == 3, "the traffic near each run's end, in its colour"
     assert len(kept.read_text().splitlines()) == 6, "only the scenario's runs are kept"
 
 

@@ -477,6 +477,7 @@ mod tests {
         let p = stalled.hazard_point.unwrap();
         let c = car(&stalled.bodies_start);
         assert!((p[0] - c[0]).hypot(p[1] - c[1]) < 3.0, "the car stands at the hazard point: {c:?} vs {p:?}");
+        assert!(stalled.bodies_start.iter().all(|b| b.kind != "traffic"), "traffic is drawn at the end only");
         let walker = report.trajectories.iter().find(|t| t.scenario == "pedestrian_crossing").unwrap();
         assert!(walker.bodies_start.iter().any(|b| b.kind == "walker") && walker.bodies_start.iter().any(|b| b.kind == "parked_car"));
     }

@@ -13,12 +13,15 @@ use crate::eval::score::RunScore;
 
 /// Parked cars this close to the hazard point are drawn (the car a walker steps out behind).
 const PARKED_NEAR_M: f32 = 60.0;
+/// At the end, traffic cars this close to the ego are drawn too (what it may have hit).
+const TRAFFIC_NEAR_M: f32 = 12.0;
 
 /// A box in the world: centre, half extents, angle (radians).
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Body {
-    /// `hazard_car`, `cone`, `barrier`, `parked_car` (a hazard's prop), `parked` (on a shoulder)
-    /// or `walker` (a point: half extents zero).
+    /// `hazard_car`, `cone`, `barrier`, `parked_car` (a hazard's prop), `parked` (on a shoulder),
+    /// `walker` (a point: half extents zero) or, at the end only, `traffic` (a moving car near
+    /// the ego).
     pub kind: &'static str,
     pub centre: [f32; 2],
     pub half: [f32; 2],
@@ -39,6 +42,7 @@ pub struct Trajectory {
     /// `[x, y, speed m/s]` after the reset and after every step.
     pub ego: Vec<[f32; 3]>,
     pub bodies_start: Vec<Body>,
+    /// The same at the end, and the traffic cars within 12 m of the ego then.
     pub bodies_end: Vec<Body>,
     /// How the run ended, as the report's infractions name it, and its driving score.
     pub infractions: Vec<&'static str>,
@@ -80,6 +84,16 @@ fn bodies(env: &Env) -> Vec<Body> {
     out
 }
 
+/// The traffic cars near the ego (the hazard's own car left out: `bodies` has it).
+fn traffic_near_ego(env: &Env) -> impl Iterator<Item = Body> + '_ {
+    let own = env.hazard.as_ref().and_then(|h| h.car);
+    (0..env.traffic.cars.len())
+        .filter(move |&i| Some(i) != own)
+        .map(|i| env.traffic.body(i))
+        .filter(|b| b.centre.distance(env.ego.pos) <= TRAFFIC_NEAR_M)
+        .map(|b| body("traffic", &b))
+}
+
 /// Follows one run step by step.
 #[derive(Debug, Clone, Default)]
 pub struct TrajectoryRecorder {
@@ -109,7 +123,7 @@ impl TrajectoryRecorder {
             route: env.route.path.points().iter().map(|&p| point(p)).collect(),
             ego: self.ego,
             bodies_start: self.start,
-            bodies_end: bodies(env),
+            bodies_end: bodies(env).into_iter().chain(traffic_near_ego(env)).collect(),
             infractions: run.infractions.iter().map(|i| i.name()).collect(),
             driving_score: run.driving_score,
         }
