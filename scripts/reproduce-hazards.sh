@@ -259,12 +259,13 @@ if [[ "$report_only" == 0 ]]; then
         done
     fi
     # 5. The episode figure's runs: every agent around the same hazards (the suite's seeds on
-    # default_town), each agent's lowest finished seed whose run directory is here, last checkpoint.
+    # default_town), each agent's lowest finished seed (of any --seeds) whose run directory is
+    # here, last checkpoint.
     fig_args=()
     for v in "${agents[@]}" "${long[@]}"; do
         name="${v%%|*}"
-        for seed in $(seq 1 "$seeds"); do
-            d="$runs_dir/$name/seed$seed"
+        for d in $(ls -d "$runs_dir/$name"/seed* 2>/dev/null | sort -V); do
+            seed="${d##*/seed}"
             if [[ -f "$results/$name/seed$seed/run.json" && -f "$d/checkpoint/online.safetensors" ]]; then
                 fig_args+=(--checkpoint "$d" --name "$name, seed $seed")
                 break
