@@ -260,18 +260,28 @@ if [[ "$report_only" == 0 ]]; then
     fi
     # 5. The episode figure's runs: every agent around the same hazards (the suite's seeds on
     # default_town), each agent's lowest finished seed (of any --seeds) whose run directory is
-    # here, last checkpoint.
+    # here, last checkpoint. A kept figure is redrawn only when every agent has one here: a
+    # machine that trained a few runs must not replace it with a figure of fewer agents.
     fig_args=()
+    missing=()
     for v in "${agents[@]}" "${long[@]}"; do
         name="${v%%|*}"
+        found=0
         for d in $(ls -d "$runs_dir/$name"/seed* 2>/dev/null | sort -V); do
             seed="${d##*/seed}"
             if [[ -f "$results/$name/seed$seed/run.json" && -f "$d/checkpoint/online.safetensors" ]]; then
                 fig_args+=(--checkpoint "$d" --name "$name, seed $seed")
+                found=1
                 break
             fi
         done
+        [[ "$found" == 1 ]] || missing+=("$name")
     done
+    kept_episode="$results/episode/stalled_car.jsonl"
+    if [[ ${#missing[@]} -gt 0 && -f "$kept_episode" ]]; then
+        echo "== the episode figure: kept as it is ($kept_episode); no finished checkpoint here for ${missing[*]}" >&2
+        fig_args=()
+    fi
     if [[ ${#fig_args[@]} -gt 0 ]]; then
         echo "== the episode figure's runs: $(( ${#fig_args[@]} / 4 )) checkpoints and the baselines, hazard suite on default_town" >&2
         "$actor" eval --suite hazards --town default_town --runs "$runs" --seed 0 "${fig_args[@]}" \
