@@ -8,11 +8,21 @@ use std::process::Command;
 /// The packages `package` links (normal dependencies, transitively), by name.
 fn normal_dependencies(package: &str) -> Vec<String> {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
-    let out = Command::new(env!("CARGO"))
-        .current_dir(&root)
-        .args(["tree", "--offline", "--locked", "-e", "normal", "--prefix", "none", "--format", "{p}", "-p", package])
-        .output()
-        .expect("running cargo tree");
+    let tree = || {
+        Command::new(env!("CARGO"))
+            .current_dir(&root)
+            .args(["tree", "--offline", "--locked", "-e", "normal", "--prefix", "none", "--format", "{p}", "-p", package])
+            .output()
+            .expect("running cargo tree")
+    };
+    let mut out = tree();
+    if !out.status.success() {
+        // `cargo tree` resolves the whole workspace: in a fresh checkout the crates that no
+        // built target needed yet (the python binding's) are not downloaded. Fetch them once.
+        let fetched = Command::new(env!("CARGO")).current_dir(&root).args(["fetch", "--locked"]).status().expect("running cargo fetch");
+        assert!(fetched.success(), "cargo fetch --locked failed: cargo tree -p {package}: {}", String::from_utf8_lossy(&out.stderr));
+        out = tree();
+    }
     assert!(out.status.success(), "cargo tree -p {package}: {}", String::from_utf8_lossy(&out.stderr));
     let mut names: Vec<String> =
         String::from_utf8_lossy(&out.stdout).lines().filter_map(|l| l.split_whitespace().next()).map(str::to_owned).collect();
