@@ -52,7 +52,19 @@ pub struct Link {
     /// Set by the weights poll when the learner answers again after failing to: a restarted
     /// learner is back, so a wait before registering again can end now.
     pub learner_back: AtomicBool,
+    /// When the learner last acknowledged a batch.
+    pub last_ack: Mutex<Option<Instant>>,
+    /// Microseconds the stepping thread has waited for room in the outbox.
+    pub waited_micros: AtomicU64,
 }
+
+/// Batches the outbox may hold before the stepping thread waits for the learner to take some.
+pub const ROOM_BATCHES: usize = 4;
+
+/// A learner counts as taking batches while it acknowledged one this recently. One that holds
+/// its streams for the replay ratio acknowledges every few updates; a frozen or lost one stops,
+/// and the actor steps on (buffering, then dropping the oldest steps, as for an absent learner).
+pub const ACK_FRESH: Duration = Duration::from_secs(5);
 
 impl Link {
     /// Records the learner's count of the run's environment steps (0 from a learner that does not
@@ -62,6 +74,31 @@ impl Link {
             let own = self.env_steps.load(Ordering::SeqCst);
             self.run_steps_offset.store(run_env_steps as i64 - own as i64, Ordering::SeqCst);
         }
+    }
+
+    /// Waits while a connected learner that is taking batches has more than [`ROOM_BATCHES`]
+    /// waiting: a learner that holds its streams for the replay ratio (`service.update_lag_limit`)
+    /// slows the stepping instead of making it drop steps. Returns at once on stop, and when the
+    /// learner is away or has acknowledged nothing for [`ACK_FRESH`].
+    pub fn wait_for_room(&self) {
+        let started = Instant::now();
+        let mut waited = false;
+        while !self.stop.load(Ordering::SeqCst)
+            && self.connected.load(Ordering::SeqCst)
+            && self.outbox.lock().expect("outbox lock").batches.len() > ROOM_BATCHES
+            && self.last_ack.lock().expect("ack time lock").is_some_and(|t| t.elapsed() < ACK_FRESH)
+        {
+            waited = true;
+            std::thread::sleep(Duration::from_millis(1));
+        }
+        if waited {
+            self.waited_micros.fetch_add(started.elapsed().as_micros() as u64, Ordering::Relaxed);
+        }
+    }
+
+    /// Records an acknowledgement from the learner.
+    pub fn note_ack(&self) {
+        *self.last_ack.lock().expect("ack time lock") = Some(Instant::now());
     }
 
     /// The run's environment step that this process's `own_steps` correspond to.
@@ -99,6 +136,61 @@ impl Outbox {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn link() -> Link {
+        Link {
+            outbox: Mutex::new(Outbox::default()),
+            fresh_weights: Mutex::new(None),
+            acting_version: AtomicU64::new(0),
+            stop: AtomicBool::new(false),
+            stepper_done: AtomicBool::new(false),
+            connected: AtomicBool::new(true),
+            env_steps: AtomicU64::new(0),
+            run_steps_offset: AtomicI64::new(0),
+            actor_id: Mutex::new(String::new()),
+            learner_back: AtomicBool::new(false),
+            last_ack: Mutex::new(None),
+            waited_micros: AtomicU64::new(0),
+        }
+    }
+
+    /// The stepping thread waits while a learner that is taking batches has more than
+    /// `ROOM_BATCHES` waiting, until it takes one; not for a learner that has acknowledged
+    /// nothing lately (frozen, or gone: the outbox buffers and drops as before), nor once stopped.
+    #[test]
+    fn stepping_waits_for_room_only_while_the_learner_is_taking_batches() {
+        let batch = || -> OutBatch { (vec![pb::Step::default(); 4], Vec::new(), 0.1, 1) };
+        let link = std::sync::Arc::new(link());
+        for _ in 0..=ROOM_BATCHES {
+            link.outbox.lock().unwrap().push_bounded(batch(), 1000);
+        }
+        // Nothing acknowledged yet: no wait.
+        link.wait_for_room();
+        assert_eq!(link.waited_micros.load(Ordering::Relaxed), 0);
+        // A learner taking batches: the wait ends when it takes one.
+        link.note_ack();
+        let taker = {
+            let link = link.clone();
+            std::thread::spawn(move || {
+                std::thread::sleep(Duration::from_millis(50));
+                link.outbox.lock().unwrap().batches.pop_front();
+                link.note_ack();
+            })
+        };
+        link.wait_for_room();
+        taker.join().unwrap();
+        assert!(link.waited_micros.load(Ordering::Relaxed) >= 40_000, "waited {} µs", link.waited_micros.load(Ordering::Relaxed));
+        assert_eq!(link.outbox.lock().unwrap().batches.len(), ROOM_BATCHES);
+        // A stale acknowledgement (a frozen learner), or a stop: no wait.
+        link.outbox.lock().unwrap().push_bounded(batch(), 1000);
+        *link.last_ack.lock().unwrap() = Instant::now().checked_sub(ACK_FRESH);
+        let before = link.waited_micros.load(Ordering::Relaxed);
+        link.wait_for_room();
+        link.note_ack();
+        link.stop.store(true, Ordering::SeqCst);
+        link.wait_for_room();
+        assert_eq!(link.waited_micros.load(Ordering::Relaxed), before);
+    }
 
     #[test]
     fn overflow_drops_the_oldest_but_the_front_and_counts_them() {

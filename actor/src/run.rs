@@ -1,10 +1,10 @@
 //! `actor --learner ADDR`: one actor process. It registers with the learner (retrying with
 //! exponential backoff and jitter), starts the stepping thread (`stepping.rs`: N environments,
-//! one batched forward pass, ε-greedy) and streams its steps in batches. The network and the
-//! stepping loop never wait on the learner: steps go to a bounded outbox (`link.rs`) that a
-//! sender task drains, new weights are picked up
-//! between steps, and a lost learner only means buffering, counting what overflowed, and
-//! reconnecting. SIGINT/SIGTERM: stop stepping, flush what can be sent within
+//! one batched forward pass, ε-greedy) and streams its steps in batches. Steps go to a bounded
+//! outbox (`link.rs`) that a sender task drains, new weights are picked up between steps, and a
+//! lost or frozen learner only means buffering, counting what overflowed, and reconnecting; the
+//! one wait is for a learner that is there and taking batches but behind the replay ratio
+//! (`Link::wait_for_room`). SIGINT/SIGTERM: stop stepping, flush what can be sent within
 //! [`FLUSH_DEADLINE`] (even to a frozen learner), say how many steps could not be sent, exit 0.
 //!
 //! Batches are cut below the learner's `max_message_bytes` and `max_batch_steps` (`split.rs`). A
@@ -144,6 +144,8 @@ pub async fn run(opts: ActorOptions) -> Result<()> {
         run_steps_offset: AtomicI64::new(0),
         actor_id: Mutex::new(String::new()),
         learner_back: AtomicBool::new(false),
+        last_ack: Mutex::new(None),
+        waited_micros: AtomicU64::new(0),
     });
     let mut ack_log = AckLog::open(opts.ack_log.as_deref())?;
     if opts.exit_with_stdin {
@@ -385,6 +387,7 @@ async fn stream_batches(
                     ob.steps -= s.len();
                 }
                 drop(ob);
+                link.note_ack();
                 backoff.reset();
                 ack_log.record(&opts.name, &batch, &ack);
             }
@@ -529,6 +532,7 @@ async fn progress_loop(link: Arc<Link>) {
             weights_version = link.acting_version.load(Ordering::SeqCst),
             connected = link.connected.load(Ordering::SeqCst),
             buffered_steps = ob.steps,
+            waited_for_learner_secs = format!("{:.1}", link.waited_micros.load(Ordering::Relaxed) as f64 / 1e6),
             "progress"
         );
     }

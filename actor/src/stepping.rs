@@ -1,6 +1,7 @@
 //! An actor's stepping thread: N environments, one batched greedy forward pass for all of them
-//! per step, ε-greedy exploration, and the steps handed to the outbox in batches. It never waits
-//! on the learner: new weights are swapped in between steps.
+//! per step, ε-greedy exploration, and the steps handed to the outbox in batches. New weights are
+//! swapped in between steps; it waits on the learner only while one that is taking batches has
+//! several waiting (`Link::wait_for_room`: the replay ratio's backpressure).
 
 use std::sync::Arc;
 use std::sync::atomic::Ordering;
@@ -118,6 +119,7 @@ pub fn step_loop(
             let eps = std::mem::take(&mut summaries);
             let version = link.acting_version.load(Ordering::SeqCst);
             link.outbox.lock().expect("outbox lock").push_bounded((steps, eps, epsilon, version), buffer_steps);
+            link.wait_for_room();
         }
     }
     // Hand over what is left for the final flush.

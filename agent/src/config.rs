@@ -167,6 +167,11 @@ pub struct ServiceConfig {
     pub actor_timeout_secs: u64,
     /// Episodes in the rolling statistics of the status (default 100).
     pub stats_window: usize,
+    /// The most DQN updates the learner may owe the replay ratio before its experience streams
+    /// stop taking batches until it catches up (default 4): the ratio holds on a machine where
+    /// the learner is slower than the actors. 0 turns the hold off (the ratio is then a ceiling
+    /// that a slow learner falls below).
+    pub update_lag_limit: u64,
     /// `ack` (default): a batch is acknowledged only once it is in the replay log on disk
     /// (`RUN_DIR/replay-log/`, synced by group commit), and `--resume` rebuilds the replay from
     /// it. `none`: acknowledged once in memory; the replay starts empty after a restart.
@@ -215,6 +220,7 @@ impl Default for ServiceConfig {
             max_message_bytes: 64 << 20,
             actor_timeout_secs: 10,
             stats_window: 100,
+            update_lag_limit: 4,
             durability: Durability::Ack,
             replay_log_segment_bytes: 64 << 20,
             tls_cert: String::new(),

@@ -107,6 +107,21 @@ pub struct TrainStats {
     /// Seconds the training thread has waited for data since it started (replay below its
     /// minimum, or the replay ratio reached): the learner idle for want of data.
     pub idle_secs: f64,
+    /// Seconds experience streams have waited for the training thread to catch up with the
+    /// replay ratio (`service.update_lag_limit`), summed over streams: the actors held.
+    pub held_secs: f64,
+}
+
+/// Where this session's replay ratio counts from: set by the training thread when the replay
+/// first reaches its minimum, cleared when the thread ends (nothing is then owed, and no stream
+/// waits for a thread that is gone).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct RatioBaseline {
+    /// Transitions stored before the count began (a resumed learner's rebuilt replay was trained
+    /// on by its predecessor).
+    pub stored_at_fill: u64,
+    /// Updates done before the count began.
+    pub updates_at_start: u64,
 }
 
 /// Everything shared between the server's tasks and the training thread.
@@ -127,6 +142,8 @@ pub struct Shared {
     pub recent_episodes: Mutex<VecDeque<EpisodeOutcome>>,
     pub stats: Mutex<TrainStats>,
     pub metrics: MetricsLog,
+    /// Where the replay ratio counts from, once training has started ([`Shared::updates_owed`]).
+    pub ratio_baseline: Mutex<Option<RatioBaseline>>,
     /// Wakes the training thread when transitions arrive.
     pub data_arrived: (Mutex<()>, Condvar),
     pub shutdown: AtomicBool,
@@ -201,6 +218,19 @@ impl Shared {
     #[must_use]
     pub fn recent_refusal(&self) -> Option<String> {
         self.last_refusal.lock().expect("refusal lock").as_ref().filter(|(t, _)| t.elapsed() < RECENT_REFUSAL).map(|(_, r)| r.clone())
+    }
+
+    /// Updates the replay ratio allows now and the training thread has not done: what the
+    /// training thread works off, and what the experience streams wait on
+    /// (`service.update_lag_limit`). 0 before training starts.
+    #[must_use]
+    pub fn updates_owed(&self) -> u64 {
+        let Some(b) = *self.ratio_baseline.lock().expect("ratio baseline lock") else { return 0 };
+        let a = &self.cfg.agent;
+        let c = self.counters.lock().expect("counters lock");
+        let arrived = c.transitions_stored.saturating_sub(b.stored_at_fill);
+        let allowed = (arrived as f64 * f64::from(a.replay_ratio) / a.batch_size as f64).floor() as u64;
+        allowed.saturating_sub(c.learner_step.saturating_sub(b.updates_at_start))
     }
 
     /// The newest weights.

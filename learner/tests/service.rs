@@ -230,3 +230,40 @@ async fn a_token_is_required_when_configured() {
     assert!(body.contains("learner_weights_version 1\n"), "{body}");
     running.stop().await.unwrap();
 }
+
+/// A burst of batches on one stream against a learner whose updates are slower than the batches
+/// arrive (8 samples trained per transition inserted): with `service.update_lag_limit` the
+/// stream is held until the learner has caught up to within the limit and one batch; without
+/// it (0), the burst is stored at once and the learner is left hundreds of updates behind.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn streams_wait_for_a_learner_behind_the_replay_ratio() {
+    async fn burst(limit: u64) -> (u64, f64) {
+        let dir = tempfile::tempdir().unwrap();
+        let mut cfg = RunConfig::tiny(&dir.path().join("run"));
+        (cfg.agent.replay_ratio, cfg.agent.batch_size, cfg.agent.replay_capacity) = (8.0, 32, 5000);
+        cfg.service.update_lag_limit = limit;
+        let cfg_path = dir.path().join("run.toml");
+        std::fs::write(&cfg_path, cfg.to_toml()).unwrap();
+        let running = start(ServeOptions { config: Some(cfg_path), ..ServeOptions::default() }).await.unwrap();
+        let mut c = client(&running).await;
+        let a = register(&mut c, "a").await;
+        // One episode per batch (t = 0 is its reset): 99 transitions each.
+        let batches = (0..8).map(|k| batch(&a.actor_id, k + 1, steps(k, 0, 100, 256))).collect();
+        let acks = send(&mut c, batches).await;
+        assert!(acks.iter().all(Result::is_ok), "{acks:?}");
+        let st = status(&mut c).await;
+        assert_eq!(st.transitions_stored, 8 * 99);
+        // Owed now: every transition stored counts (the replay reached its minimum from empty).
+        let owed = (st.transitions_stored * 8 / 32).saturating_sub(st.learner_step);
+        println!("update_lag_limit {limit}: {owed} updates owed after the burst, streams held {:.2} s", st.held_secs);
+        running.stop().await.unwrap();
+        (owed, st.held_secs)
+    }
+    let (owed, held) = burst(4).await;
+    // At most the limit, plus the 24.75 updates of the last batch stored, plus one of rounding.
+    assert!(owed <= 4 + 25 + 1, "{owed} updates owed after the burst, with update_lag_limit = 4");
+    assert!(held > 0.0, "the stream was held: held_secs {held}");
+    let (owed, held) = burst(0).await;
+    assert!(owed > 100, "without the hold the burst leaves the learner behind: {owed} updates owed");
+    assert!(held == 0.0, "nothing is held with update_lag_limit = 0: held_secs {held}");
+}

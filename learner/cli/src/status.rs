@@ -55,6 +55,7 @@ pub fn table(report: &StatusReport) -> String {
         replay_bytes,
         updates_per_sec,
         env_steps_per_sec,
+        held_secs,
         loss,
         mean_q,
         epsilon,
@@ -84,7 +85,7 @@ pub fn table(report: &StatusReport) -> String {
     };
     line(format!("run {run_id} ({variant}), up {uptime_secs:.0} s, trained {run_secs:.0} s over its sessions"));
     line(format!(
-        "learner step {learner_step}   env steps {env_steps}   weights version {weights_version}   updates/s {updates_per_sec:.2}   env steps/s {env_steps_per_sec:.0}"
+        "learner step {learner_step}   env steps {env_steps}   weights version {weights_version}   updates/s {updates_per_sec:.2}   env steps/s {env_steps_per_sec:.0}   actors held {held_secs:.0} s (replay ratio)"
     ));
     line(format!("loss {:.4}   mean Q {:.3}   epsilon schedule at the run's step {epsilon:.3}", or_nan(loss), or_nan(mean_q)));
     line(format!(
@@ -220,9 +221,10 @@ mod tests {
             recent_refusal: "bad seq".into(),
             env_steps: 9025,
             run_secs: 9026.0,
+            held_secs: 9027.0,
         };
         let text = table(&StatusReport::from(s));
-        for n in (9001..=9026).chain(9101..=9109) {
+        for n in (9001..=9027).chain(9101..=9109) {
             assert!(text.contains(&n.to_string()), "{n} is missing from the table:\n{text}");
         }
         for t in ["run-x", "hybrid", "ack", "boom", "disk full", "bad seq", "actor-id-7", "west", "0.125", "0.375", "25%", "50%"] {

@@ -221,6 +221,7 @@ async fn start_with(opts: ServeOptions, train: Trainer) -> Result<Running> {
         recent_episodes: Mutex::new(VecDeque::new()),
         stats: Mutex::new(TrainStats::default()),
         metrics: MetricsLog::open(&run_dir).with_context(|| format!("opening metrics files in {}", run_dir.display()))?,
+        ratio_baseline: Mutex::new(None),
         data_arrived: (Mutex::new(()), Condvar::new()),
         shutdown: Default::default(),
         elapsed_before,

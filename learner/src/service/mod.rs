@@ -2,6 +2,7 @@
 
 pub mod auth;
 pub mod bounds;
+pub mod hold;
 pub mod rpc;
 pub mod tls;
 pub mod validate;

@@ -137,6 +137,8 @@ impl Learner for LearnerService {
                 stream.attach(id);
             }
             while let Some(item) = incoming.next().await {
+                // The replay ratio holds: nothing more is stored while the learner is behind.
+                crate::service::hold::until_learner_catches_up(&shared).await;
                 if shared.stopping() {
                     // Refuse new work while stopping: the actor keeps the batch and resends it.
                     let _ = ordered.send(Err(Status::unavailable("the learner is stopping; retry shortly"))).await;
@@ -567,6 +569,7 @@ pub fn status(shared: &Shared) -> pb::StatusResponse {
         recent_refusal: shared.recent_refusal().unwrap_or_default(),
         env_steps: c.env_steps,
         run_secs: shared.run_secs(),
+        held_secs: st.held_secs,
     }
 }
 

@@ -35,6 +35,9 @@ pub struct StatusReport {
     pub replay_bytes: u64,
     pub updates_per_sec: f64,
     pub env_steps_per_sec: f64,
+    /// Seconds experience streams waited for the training thread to catch up with the replay
+    /// ratio, summed over streams.
+    pub held_secs: f64,
     /// `null` before training (NaN on the wire).
     pub loss: Option<f64>,
     /// `null` before training (NaN on the wire).
@@ -132,6 +135,7 @@ impl From<pb::StatusResponse> for StatusReport {
             recent_refusal,
             env_steps,
             run_secs,
+            held_secs,
         } = s;
         let pb::EpisodeStats { window, mean_return, completion_rate, collision_rate, episodes_total } = episodes.unwrap_or_default();
         let finite = |x: f64| x.is_finite().then_some(x);
@@ -152,6 +156,7 @@ impl From<pb::StatusResponse> for StatusReport {
             replay_bytes,
             updates_per_sec,
             env_steps_per_sec,
+            held_secs,
             loss: finite(loss),
             mean_q: finite(mean_q),
             epsilon,
@@ -259,6 +264,11 @@ pub const EXPORTED: &[Exported] = &[
     gauge("/episodes/completion_rate", "learner_episode_completion_rate", "Share of the recent episodes that reached their goal."),
     gauge("/episodes/collision_rate", "learner_episode_collision_rate", "Share of the recent episodes that ended in a collision."),
     gauge("/uptime_secs", "learner_uptime_seconds", "Seconds since this learner process started."),
+    counter(
+        "/held_secs",
+        "learner_held_seconds",
+        "Seconds experience streams waited for training to catch up with the replay ratio, summed over streams.",
+    ),
     gauge("/run_secs", "learner_run_seconds", "Seconds the run has trained, over all its sessions."),
 ];
 

@@ -1,5 +1,6 @@
 //! The training thread: decoupled from ingestion, it trains as fast as the replay ratio allows
-//! (samples trained per transition inserted), publishes weights every few updates and writes
+//! (samples trained per transition inserted; the experience streams wait while it owes more than
+//! `service.update_lag_limit` updates, `service/hold.rs`), publishes weights every few updates and writes
 //! checkpoints on an interval — the first at most 30 s after it starts, so that an early SIGKILL
 //! loses little training. A checkpoint that cannot be written is retried with backoff (5 s
 //! doubling to 5 min) while training goes on, and shown in Status; a publication that fails is
@@ -11,7 +12,7 @@ use std::time::{Duration, Instant};
 
 use agent::backoff::Backoff;
 
-use crate::state::{PublishedWeights, Shared};
+use crate::state::{PublishedWeights, RatioBaseline, Shared};
 use crate::storage::checkpoint;
 use crate::storage::replay::Sample;
 use crate::training::dqn::{Batch, Dqn};
@@ -102,11 +103,15 @@ pub fn run(shared: &Arc<Shared>, mut dqn: Dqn, run_dir: &std::path::Path) -> any
     let a = shared.cfg.agent.clone();
     let interval = Duration::from_secs(shared.cfg.service.checkpoint_interval_secs.max(1));
     let mut checkpoints = CheckpointSchedule { next: Instant::now() + interval.min(FIRST_CHECKPOINT), retry: CheckpointSchedule::RETRY };
-    let mut stored_at_fill: Option<u64> = None;
     // A resumed learner's rebuilt replay was trained on by its predecessor: the replay ratio
     // counts what arrives from now on.
-    let stored_at_start = shared.counters.lock().expect("counters lock").transitions_stored;
+    let stored_at_start = {
+        let mut c = shared.counters.lock().expect("counters lock");
+        c.learner_step = dqn.updates;
+        c.transitions_stored
+    };
     let updates_at_start = dqn.updates;
+    let _clear = ClearBaselineOnExit(shared);
     let mut loss_ema: Option<f64> = None;
     let mut q_ema: Option<f64> = None;
     while !shared.stopping() {
@@ -121,9 +126,12 @@ pub fn run(shared: &Arc<Shared>, mut dqn: Dqn, run_dir: &std::path::Path) -> any
             continue;
         }
         // Count from the moment the replay first reached its minimum in this session.
-        let fill = *stored_at_fill.get_or_insert(stored.saturating_sub(len as u64).max(stored_at_start));
-        let allowed = ((stored - fill) as f64 * f64::from(a.replay_ratio) / a.batch_size as f64).floor() as u64;
-        if dqn.updates - updates_at_start >= allowed {
+        shared
+            .ratio_baseline
+            .lock()
+            .expect("ratio baseline lock")
+            .get_or_insert(RatioBaseline { stored_at_fill: stored.saturating_sub(len as u64).max(stored_at_start), updates_at_start });
+        if shared.updates_owed() == 0 {
             wait_for_data(shared);
             continue;
         }
@@ -149,6 +157,18 @@ pub fn run(shared: &Arc<Shared>, mut dqn: Dqn, run_dir: &std::path::Path) -> any
         }
     }
     Ok(dqn)
+}
+
+/// Clears the replay ratio's baseline when the training thread ends, however it ends: nothing is
+/// owed to a thread that is gone, so no experience stream waits for it.
+struct ClearBaselineOnExit<'a>(&'a Shared);
+
+impl Drop for ClearBaselineOnExit<'_> {
+    fn drop(&mut self) {
+        if let Ok(mut b) = self.0.ratio_baseline.lock() {
+            *b = None;
+        }
+    }
 }
 
 /// Waits (at most 50 ms) for transitions to arrive, counting the time as idle.
