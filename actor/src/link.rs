@@ -28,8 +28,9 @@ pub struct Outbox {
 /// How often an overflowing outbox says so.
 pub const DROP_WARN_EVERY: Duration = Duration::from_secs(60);
 
-/// What the stepping thread and the network tasks share.
-#[derive(Debug)]
+/// What the stepping thread and the network tasks share (`default()`: nothing sent, not yet
+/// connected).
+#[derive(Debug, Default)]
 pub struct Link {
     pub outbox: Mutex<Outbox>,
     /// Newest weights fetched, decoded and not yet acted with: (version, parameters). Decoded by
@@ -138,20 +139,7 @@ mod tests {
     use super::*;
 
     fn link() -> Link {
-        Link {
-            outbox: Mutex::new(Outbox::default()),
-            fresh_weights: Mutex::new(None),
-            acting_version: AtomicU64::new(0),
-            stop: AtomicBool::new(false),
-            stepper_done: AtomicBool::new(false),
-            connected: AtomicBool::new(true),
-            env_steps: AtomicU64::new(0),
-            run_steps_offset: AtomicI64::new(0),
-            actor_id: Mutex::new(String::new()),
-            learner_back: AtomicBool::new(false),
-            last_ack: Mutex::new(None),
-            waited_micros: AtomicU64::new(0),
-        }
+        Link { connected: AtomicBool::new(true), ..Link::default() }
     }
 
     /// The stepping thread waits while a learner that is taking batches has more than

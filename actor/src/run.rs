@@ -13,8 +13,8 @@
 //! from 0.5 s to 30 s (±25 %) until a batch is acknowledged again: never a tight reconnect loop.
 
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicBool, AtomicI64, AtomicU64, Ordering};
-use std::sync::{Arc, Mutex};
+use std::sync::Arc;
+use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 
 use agent::NetShape;
@@ -133,20 +133,7 @@ pub async fn run(opts: ActorOptions) -> Result<()> {
         // Refused once, before any connection, rather than at every retry.
         opts.learner.check_token_safety().await?;
     }
-    let link = Arc::new(Link {
-        outbox: Mutex::new(Outbox::default()),
-        fresh_weights: Mutex::new(None),
-        acting_version: AtomicU64::new(0),
-        stop: AtomicBool::new(false),
-        stepper_done: AtomicBool::new(false),
-        connected: AtomicBool::new(false),
-        env_steps: AtomicU64::new(0),
-        run_steps_offset: AtomicI64::new(0),
-        actor_id: Mutex::new(String::new()),
-        learner_back: AtomicBool::new(false),
-        last_ack: Mutex::new(None),
-        waited_micros: AtomicU64::new(0),
-    });
+    let link = Arc::new(Link::default());
     let mut ack_log = AckLog::open(opts.ack_log.as_deref())?;
     if opts.exit_with_stdin {
         exit_when_stdin_closes()?;
