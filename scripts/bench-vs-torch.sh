@@ -3,7 +3,8 @@
 # autocast, scripts/torch_peer.py) on the same network, batch and threads, alternating the two
 # programs ROUNDS times per input so that both see the same machine. Prints one JSON object per
 # run and a summary with the ratios (PyTorch's time / fastnet's: above 1, fastnet is ahead).
-# Needs PyTorch: PYTHON (default python3) must import torch. Usage:
+# Needs PyTorch: PYTHON (default python3) must import torch. LEARNER names a built `learner`
+# binary to time (default: this checkout's, built here first). Usage:
 #   scripts/bench-vs-torch.sh [ROUNDS] [INPUT...]      e.g. scripts/bench-vs-torch.sh 3 84x84x1 48x48x1
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -12,7 +13,11 @@ shift || true
 if [ $# -gt 0 ]; then inputs=("$@"); else inputs=(84x84x1 48x48x1); fi
 python=${PYTHON:-python3}
 "$python" -c 'import torch' 2>/dev/null || { echo "bench-vs-torch: $python cannot import torch (set PYTHON to one that can)" >&2; exit 2; }
-cargo build --release -q -p learner-cli
+learner=${LEARNER:-}
+if [ -z "$learner" ]; then
+    cargo build --release -q -p learner-cli
+    learner=./target/release/learner
+fi
 echo "cpu: $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2-) | flags: $(grep -o -w -E 'amx_bf16|amx_tile|avx512_bf16|avx512f' /proc/cpuinfo | sort -u | tr '\n' ' ')" >&2
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
@@ -21,7 +26,7 @@ for input in "${inputs[@]}"; do
     channels=${input##*x}
     for round in $(seq "$rounds"); do
         echo "[$input round $round/$rounds] fastnet" >&2
-        ./target/release/learner bench train --precision both --input "$input" --threads 2 --updates 10 --json 2>/dev/null | tail -1 | tee -a "$tmp/fastnet-$input.jsonl"
+        "$learner" bench train --precision both --input "$input" --threads 2 --updates 10 --json 2>/dev/null | tail -1 | tee -a "$tmp/fastnet-$input.jsonl"
         echo "[$input round $round/$rounds] pytorch" >&2
         "$python" scripts/torch_peer.py "$size" "$channels" | tee -a "$tmp/torch-$input.jsonl"
     done

@@ -36,7 +36,7 @@ pub fn step_loop(
     // One thread: an actor's batch is a few frames, and actors share the cores with each other
     // and the learner.
     let (mut net, arithmetic) = Inference::with_precision(shape, cfg.agent.seed, 1, cfg.agent.precision);
-    tracing::info!(bf16 = arithmetic.bf16, "acting in {} ({})", if arithmetic.bf16 { "bf16 on AMX" } else { "f32" }, arithmetic.reason);
+    tracing::info!(bf16 = arithmetic.bf16, "acting in {} ({})", arithmetic.arithmetic(), arithmetic.reason);
     let actions = cfg.agent.action_set.actions();
     let mut rng = episode_rng(seed, index, episode_stream);
     let mut envs: Vec<Env> = (0..n).map(|_| Env::new(town.clone(), cfg.env.clone())).collect::<Result<_, _>>()?;

@@ -1,17 +1,18 @@
-//! The bf16 path (AMX) against the f32 path of the same network: Q values and every gradient
-//! within bf16's rounding (8 significant bits), bit-identical on repeat and across thread
-//! counts. Skipped, with a message saying so, where AMX is absent.
+//! The bf16 path (AMX or AVX512-BF16, whichever the machine runs; `FASTNET_BF16_KERNEL` picks one
+//! where it has both) against the f32 path of the same network: Q values and every gradient
+//! within bf16's rounding (8 significant bits), bit-identical on repeat and across thread counts.
+//! Skipped, with a message saying so, where neither is present.
 
 use agent::NetShape;
-use agent::fastnet::{FastNet, Params, amx};
+use agent::fastnet::{FastNet, Params, bf16_matmul};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 fn skip(test: &str) -> bool {
-    match amx::available() {
-        Ok(()) => false,
+    match bf16_matmul::available() {
+        Ok(_) => false,
         Err(why) => {
-            eprintln!("SKIPPED {test}: no AMX here ({why}); only the f32 path runs on this machine");
+            eprintln!("SKIPPED {test}: no bf16 kernel here ({why}); only the f32 path runs on this machine");
             true
         }
     }
@@ -102,12 +103,12 @@ fn one_image_split_across_threads_matches_one_thread_in_bf16() {
 }
 
 #[test]
-fn bf16_is_refused_where_amx_is_absent() {
-    if amx::available().is_ok() {
-        eprintln!("SKIPPED bf16_is_refused_where_amx_is_absent: this machine has AMX");
+fn bf16_is_refused_where_no_bf16_kernel_runs() {
+    if let Ok(kernel) = bf16_matmul::available() {
+        eprintln!("SKIPPED bf16_is_refused_where_no_bf16_kernel_runs: this machine has {}", kernel.name());
         return;
     }
-    let refused = std::panic::catch_unwind(|| FastNet::with_precision(PAPER_48, 1, true)).expect_err("bf16 accepted without AMX");
+    let refused = std::panic::catch_unwind(|| FastNet::with_precision(PAPER_48, 1, true)).expect_err("bf16 accepted without a bf16 kernel");
     let message = refused.downcast_ref::<String>().cloned().unwrap_or_default();
-    assert!(message.contains("bf16 without AMX"), "{message}");
+    assert!(message.contains("bf16 without a bf16 kernel"), "{message}");
 }

@@ -50,7 +50,7 @@ fn icount_measured(work: &mut dyn FnMut()) {
 /// The preset `actor train` runs by default.
 fn config() -> RunConfig {
     let mut cfg = RunConfig::preset("hybrid-tuned").expect("a known preset");
-    // valgrind runs no AMX: the counts are the f32 path's, on every machine.
+    // valgrind runs neither AMX nor AVX-512: the counts are the f32 path's, on every machine.
     cfg.agent.precision = agent::fastnet::Precision::F32;
     cfg
 }

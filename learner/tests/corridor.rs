@@ -99,7 +99,7 @@ struct Options {
     double_dqn: bool,
     prioritized: bool,
     /// The network's arithmetic: bf16 needs convolutions as wide as the paper's (their
-    /// channels a multiple of 32) to run on AMX at all.
+    /// channels a multiple of 32) to run on a bf16 kernel at all.
     bf16: bool,
 }
 
@@ -276,8 +276,8 @@ fn prioritized_replay_learns_the_corridor() {
 
 #[test]
 fn bf16_dqn_learns_the_corridor() {
-    if let Err(why) = agent::fastnet::amx::available() {
-        eprintln!("SKIPPED bf16_dqn_learns_the_corridor: no AMX here ({why}); the f32 runs above are the test on this machine");
+    if let Err(why) = agent::fastnet::bf16_matmul::available() {
+        eprintln!("SKIPPED bf16_dqn_learns_the_corridor: no bf16 kernel here ({why}); the f32 runs above are the test on this machine");
         return;
     }
     learns(Options { n_step: 1, double_dqn: false, prioritized: false, bf16: true }, 0.15);

@@ -1,24 +1,16 @@
-//! Intel AMX: detection, and a bf16 matrix multiply with f32 accumulation on the tile registers
-//! (`tdpbf16ps`), behind a bounds-checked safe interface. With `gemm.rs`, the only `unsafe` code of
-//! the workspace: stable Rust has no AMX intrinsics, so the kernel is `asm!` with the tiles named
-//! literally (tmm0–3 accumulate a 32 × 32 block of the output, tmm4–5 hold two 16-row strips of
-//! the left matrix, tmm6–7 two 16-column strips of the right one).
-//!
-//! Layouts (`bf16` values are `u16` bit patterns, see `fastnet::bf16`):
-//! - the left matrix is read in place through an [`AView`]: rows at a stride, each row's K values
-//!   in `segments` runs of `seg_len` (a multiple of 32) consecutive values, `seg_stride` apart. A
-//!   convolution reads its padded image this way (a run per kernel row), with no packing;
-//! - the right matrix is a [`PackedB`]: K padded to a multiple of 32 with zeros and rows taken in
-//!   pairs (`[k / 2][n][k % 2]`), the layout `tdpbf16ps` multiplies by.
+//! Intel AMX: detection, and the tile kernel of `bf16_matmul` (`tdpbf16ps`, bf16 products with
+//! f32 accumulation). Stable Rust has no AMX intrinsics, so the kernel is `asm!` with the tiles
+//! named literally (tmm0–3 accumulate a 32 × 32 block of the output, tmm4–5 hold two 16-row strips
+//! of the left matrix, tmm6–7 two 16-column strips of the right one). The layouts and the bounds
+//! checks that make it safe to call are `bf16_matmul`'s.
 
 #![allow(unsafe_code)]
 
 use std::sync::OnceLock;
 
+use super::bf16_matmul::{AView, K_STEP, PackedB};
 use super::gemm::View;
 
-/// Values of K one tile step consumes (64 bytes of bf16).
-pub const K_STEP: usize = 32;
 /// Rows (and columns) of one accumulator tile.
 const TILE: usize = 16;
 /// K steps of one pass over the output (192 values: one kernel row of a 64-channel convolution).
@@ -84,139 +76,12 @@ fn detect() -> Result<(), &'static str> {
     Err("AMX exists only on x86_64")
 }
 
-/// The left matrix of [`matmul`] inside a `u16` slice: element (i, k) at
-/// `offset + i·row_stride + (k / seg_len)·seg_stride + k % seg_len`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct AView {
-    pub offset: usize,
-    pub rows: usize,
-    pub row_stride: usize,
-    pub segments: usize,
-    pub seg_len: usize,
-    pub seg_stride: usize,
-}
-
-impl AView {
-    /// A dense row-major `rows × k` matrix (`k` a multiple of [`K_STEP`]) with rows `row_stride` apart.
-    #[must_use]
-    pub fn rows(offset: usize, rows: usize, k: usize, row_stride: usize) -> Self {
-        Self { offset, rows, row_stride, segments: 1, seg_len: k, seg_stride: 0 }
-    }
-
-    /// K, the values of one row.
-    #[must_use]
-    pub fn k(&self) -> usize {
-        self.segments * self.seg_len
-    }
-
-    /// One past the largest index the view reads, `None` if that overflows.
-    fn end(&self) -> Option<usize> {
-        if self.rows == 0 || self.k() == 0 {
-            return Some(self.offset);
-        }
-        let last_row = (self.rows - 1).checked_mul(self.row_stride)?;
-        let last_seg = (self.segments - 1).checked_mul(self.seg_stride)?;
-        self.offset.checked_add(last_row)?.checked_add(last_seg)?.checked_add(self.seg_len)
-    }
-}
-
-/// A right matrix (`k × n`) in the pair-interleaved layout of `tdpbf16ps`, K padded with zeros to a
-/// multiple of [`K_STEP`] and N to a multiple of 16.
-#[derive(Debug, Clone, Default, PartialEq)]
-pub struct PackedB {
-    pub(super) data: Vec<u16>,
-    pub(super) k_pad: usize,
-    pub(super) n: usize,
-    pub(super) n_pad: usize,
-}
-
-impl PackedB {
-    /// Packs the `k × n` f32 matrix `src` (read through `v`, any strides) rounded to bf16 (a NaN
-    /// in a contiguous source may come out infinite: `bf16::from_f32_finite`).
-    ///
-    /// # Panics
-    /// If the view leaves `src`.
-    pub fn pack(&mut self, src: &[f32], v: View) {
-        let (k, n) = (v.rows, v.cols);
-        self.k_pad = k.div_ceil(K_STEP) * K_STEP;
-        self.n = n;
-        self.n_pad = n.div_ceil(TILE) * TILE;
-        self.data.clear();
-        self.data.resize(self.k_pad * self.n_pad, 0);
-        if k > 0 && n > 0 {
-            assert!(
-                (v.offset + (k - 1) * v.row_stride + (n - 1) * v.col_stride) < src.len(),
-                "PackedB::pack: {v:?} leaves a slice of {}",
-                src.len()
-            );
-        }
-        if v.col_stride == 1 {
-            // Rows of the source are contiguous: interleave each pair in one pass.
-            for (pair, out) in self.data.chunks_exact_mut(2 * self.n_pad).take(k.div_ceil(2)).enumerate() {
-                let even = &src[v.offset + 2 * pair * v.row_stride..][..n];
-                if 2 * pair + 1 < k {
-                    let odd = &src[v.offset + (2 * pair + 1) * v.row_stride..][..n];
-                    for ((o, &e), &d) in out.chunks_exact_mut(2).zip(even).zip(odd) {
-                        o[0] = super::bf16::from_f32_finite(e);
-                        o[1] = super::bf16::from_f32_finite(d);
-                    }
-                } else {
-                    for (o, &e) in out.chunks_exact_mut(2).zip(even) {
-                        o[0] = super::bf16::from_f32_finite(e);
-                    }
-                }
-            }
-            return;
-        }
-        for kk in 0..k {
-            let row = &mut self.data[(kk / 2) * 2 * self.n_pad..(kk / 2 + 1) * 2 * self.n_pad];
-            for j in 0..n {
-                row[2 * j + kk % 2] = super::bf16::from_f32(src[v.offset + kk * v.row_stride + j * v.col_stride]);
-            }
-        }
-    }
-
-    /// K (padded) and N of the matrix.
-    #[must_use]
-    pub fn dims(&self) -> (usize, usize) {
-        (self.k_pad, self.n)
-    }
-}
-
-/// `dst = a · b`, or `dst += a · b` when `accumulate`, in bf16 with f32 accumulation, on the calling
-/// thread. `d` must be row-major (`col_stride` 1) with `a.rows` rows and `b`'s N columns, and
-/// `a`'s K must be `b`'s padded K.
+/// `dst = a · b` (or `+=`) on the tiles, on the calling thread.
 ///
-/// # Panics
-/// If the shapes disagree, a view leaves its slice or the destination
-/// view is not row-major (checked first, on any machine), or AMX is not [`available`]:
-/// programming errors of the caller, never data-dependent.
-pub fn matmul(dst: &mut [f32], d: View, accumulate: bool, a: &[u16], av: AView, b: &PackedB) {
-    assert!(d.col_stride == 1 && d.row_stride >= d.cols, "amx::matmul: destination {d:?} is not row-major");
-    assert!(d.rows == av.rows && d.cols == b.n && av.k() == b.k_pad, "amx::matmul shapes: {d:?} = {av:?} · {}×{}", b.k_pad, b.n);
-    assert!(av.seg_len.is_multiple_of(K_STEP), "amx::matmul: segment of {} values is not a multiple of {K_STEP}", av.seg_len);
-    assert!(av.end().is_some_and(|end| end <= a.len()), "amx::matmul: left view {av:?} leaves a slice of {}", a.len());
-    let d_end = if d.rows == 0 || d.cols == 0 {
-        Some(d.offset)
-    } else {
-        (d.rows - 1).checked_mul(d.row_stride).and_then(|r| r.checked_add(d.offset + d.cols))
-    };
-    assert!(d_end.is_some_and(|end| end <= dst.len()), "amx::matmul: destination view {d:?} leaves a slice of {}", dst.len());
-    assert!(b.data.len() == b.k_pad * b.n_pad, "amx::matmul: a PackedB of {} values for {}×{}", b.data.len(), b.k_pad, b.n_pad);
-    if let Err(why) = available() {
-        panic!("amx::matmul without AMX: {why}");
-    }
-    if d.rows == 0 || d.cols == 0 {
-        return;
-    }
-    if b.k_pad == 0 {
-        if !accumulate {
-            for i in 0..d.rows {
-                dst[d.offset + i * d.row_stride..][..d.cols].fill(0.0);
-            }
-        }
-        return;
-    }
+/// # Safety
+/// AMX is [`available`], and `bf16_matmul::matmul` has checked the views against their slices
+/// and the shapes against each other, with at least one row, one column and one K step.
+pub(super) unsafe fn matmul_unchecked(dst: &mut [f32], d: View, accumulate: bool, a: &[u16], av: AView, b: &PackedB) {
     let seg_chunks = av.seg_len / K_STEP;
     let mut config = TileConfig::default();
     let mut loaded = None;
@@ -240,7 +105,7 @@ pub fn matmul(dst: &mut [f32], d: View, accumulate: bool, a: &[u16], av: AView, 
                     let shape = (mr0, mr1, nr0, nr1);
                     if loaded != Some(shape) {
                         config.set(shape);
-                        // SAFETY: AMX is available (checked above); the configuration is
+                        // SAFETY: AMX is available (the caller's contract); the configuration is
                         // well-formed (palette 1, at most 16 rows and 64 bytes per tile).
                         unsafe { load_config(&config) };
                         loaded = Some(shape);
@@ -257,8 +122,8 @@ pub fn matmul(dst: &mut [f32], d: View, accumulate: bool, a: &[u16], av: AView, 
                         c_second_rows: d.offset + (i0 + TILE) * d.row_stride + j0,
                         tiles: (mr1 > 0, nr1 > 0),
                     };
-                    // SAFETY: every tile row the kernel reads lies inside the views checked
-                    // above: A rows i0..i0 + mr (< av.rows), this block's K steps of one
+                    // SAFETY: every tile row the kernel reads lies inside the views the caller
+                    // checked: A rows i0..i0 + mr (< av.rows), this block's K steps of one
                     // segment; B's rows of those K steps, columns j0..j0 + nr (< n_pad); C rows
                     // and columns inside `d`. Tiles are configured to those sizes.
                     unsafe { block.run(dst, d.row_stride, acc, a, av.row_stride, chunks, b) };
@@ -409,94 +274,3 @@ unsafe fn load_config(_: &TileConfig) {}
 
 #[cfg(not(target_arch = "x86_64"))]
 unsafe fn release() {}
-
-#[cfg(test)]
-pub(crate) mod tests {
-    use super::super::bf16;
-    use super::*;
-
-    /// Whether to run an AMX test here; says so when not (a skip is never silent).
-    pub(crate) fn amx_or_skip(test: &str) -> bool {
-        match available() {
-            Ok(()) => true,
-            Err(why) => {
-                eprintln!("SKIPPED {test}: no AMX here ({why}); the f32 path is tested instead");
-                false
-            }
-        }
-    }
-
-    fn values(n: usize, seed: f32) -> Vec<f32> {
-        (0..n).map(|i| ((i as f32 + seed) * 0.618).sin() * 2.0).collect()
-    }
-
-    /// The product in f64 of the bf16-rounded inputs: what the kernel must give up to f32
-    /// accumulation error.
-    fn reference(a: &[u16], av: AView, b: &[f32], bv: View) -> Vec<f64> {
-        let mut out = vec![0f64; av.rows * bv.cols];
-        for i in 0..av.rows {
-            for j in 0..bv.cols {
-                let mut s = 0f64;
-                for k in 0..bv.rows {
-                    let ak = av.offset + i * av.row_stride + (k / av.seg_len) * av.seg_stride + k % av.seg_len;
-                    let bk = bf16::to_f32(bf16::from_f32(b[bv.offset + k * bv.row_stride + j * bv.col_stride]));
-                    s += f64::from(bf16::to_f32(a[ak])) * f64::from(bk);
-                }
-                out[i * bv.cols + j] = s;
-            }
-        }
-        out
-    }
-
-    #[test]
-    fn every_block_shape_multiplies_like_the_definition() {
-        if !amx_or_skip("every_block_shape_multiplies_like_the_definition") {
-            return;
-        }
-        // Rows and columns that exercise full 32 × 32 blocks, single strips and partial tiles;
-        // segmented, overlapping rows of A as a convolution reads them.
-        for (m, n, segments, seg_len, row_stride, seg_stride) in
-            [(1, 1, 1, 32, 32, 0), (16, 16, 1, 64, 64, 0), (45, 70, 3, 64, 7, 100), (100, 64, 3, 192, 64, 64 * 44), (33, 17, 2, 32, 40, 33)]
-        {
-            let k = segments * seg_len;
-            let av = AView { offset: 5, rows: m, row_stride, segments, seg_len, seg_stride };
-            let a_f32 = values(av.end().unwrap(), 0.5);
-            let mut a = vec![0u16; a_f32.len()];
-            bf16::convert(&a_f32, &mut a);
-            let b = values(k * n * 2, 1.5);
-            let bv = View { offset: 3, rows: k, cols: n, row_stride: 1, col_stride: k + 1 };
-            let mut packed = PackedB::default();
-            packed.pack(&b, bv);
-            let expected = reference(&a, av, &b, bv);
-            let ld = n + 3;
-            let mut out = vec![f32::NAN; m * ld];
-            matmul(&mut out, View::rows(0, m, n, ld), false, &a, av, &packed);
-            for acc in [false, true] {
-                if acc {
-                    matmul(&mut out, View::rows(0, m, n, ld), true, &a, av, &packed);
-                }
-                let scale = if acc { 2.0 } else { 1.0 };
-                for i in 0..m {
-                    for j in 0..n {
-                        let (x, e) = (f64::from(out[i * ld + j]), scale * expected[i * n + j]);
-                        assert!((x - e).abs() <= 1e-5 * (k as f64) * 4.0, "{m}×{n}×{k} ({i}, {j}): {x} vs {e}");
-                    }
-                    // Nothing outside the destination view is written.
-                    for j in n..ld {
-                        assert!(out[i * ld + j].is_nan(), "{m}×{n}: column {j} of row {i} written");
-                    }
-                }
-            }
-        }
-    }
-
-    #[test]
-    #[should_panic(expected = "leaves a slice")]
-    fn a_left_view_past_the_end_is_refused() {
-        let a = vec![0u16; 100];
-        let mut packed = PackedB::default();
-        packed.pack(&[0.0; 64], View::rows(0, 32, 2, 2));
-        let mut out = vec![0f32; 8];
-        matmul(&mut out, View::rows(0, 4, 2, 2), false, &a, AView::rows(0, 4, 32, 30), &packed);
-    }
-}

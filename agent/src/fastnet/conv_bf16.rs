@@ -1,15 +1,15 @@
-//! The 3×3 convolution of `conv` on the AMX bf16 kernel (`amx`), for layers whose K = 3·C is a
+//! The 3×3 convolution of `conv` on a bf16 kernel (`bf16_matmul`), for layers whose K = 3·C is a
 //! whole number of tile steps (C a multiple of 32: the paper's second and third layers):
 //! the same GEMMs over the same padded layouts, with the image read in place as bf16 (one
 //! segment per kernel row) and f32 accumulation.
 //!
 //! The kernel gradient reduces over output rows, so it reads the padded input transposed
 //! ([`transpose_padded`]: channel-major planes) and the output gradient in pairs of rows
-//! ([`amx::PackedB`]); the input gradient is the forward convolution of the bf16 output gradient
+//! ([`PackedB`]); the input gradient is the forward convolution of the bf16 output gradient
 //! with the flipped kernel, as in `conv`.
 
-use super::amx::{self, AView, K_STEP, PackedB};
 use super::bf16;
+use super::bf16_matmul::{self, AView, K_STEP, PackedB};
 use super::conv::{self, ConvGeom};
 use super::gemm::View;
 
@@ -46,7 +46,7 @@ pub fn forward_rows(input: &[u16], kernel: &PackedB, g: &ConvGeom, first: usize,
     assert!(fits(g), "conv_bf16: a layer of {} input channels", g.cin);
     let n = out.len() / g.cout;
     let av = AView { offset: first * g.cin, rows: n, row_stride: g.cin, segments: 3, seg_len: 3 * g.cin, seg_stride: g.pw() * g.cin };
-    amx::matmul(out, View::rows(0, n, g.cout, g.cout), false, input, av, kernel);
+    bf16_matmul::matmul(out, View::rows(0, n, g.cout, g.cout), false, input, av, kernel);
 }
 
 /// Values of one channel's plane in [`transpose_padded`]'s layout: the padded image's pixels and
@@ -93,14 +93,14 @@ pub fn kernel_grad(input_t: &[u16], grad: &PackedB, g: &ConvGeom, dk: &mut [f32]
             // Row c of this kernel tap: channel c's plane from pixel q + ky·pw + kx, q over the
             // output rows (the padded tail of the gradient is zero).
             let av = AView::rows(ky * pw + kx, c, k_pad, p);
-            amx::matmul(dk, View::rows(k * c * g.cout, c, g.cout, g.cout), true, input_t, av, grad);
+            bf16_matmul::matmul(dk, View::rows(k * c * g.cout, c, g.cout, g.cout), true, input_t, av, grad);
         }
     }
 }
 
 #[cfg(test)]
 mod tests {
-    use super::super::amx::tests::amx_or_skip;
+    use super::super::bf16_matmul::tests::bf16_or_skip;
     use super::*;
 
     fn values(n: usize, seed: f32) -> Vec<f32> {
@@ -128,7 +128,7 @@ mod tests {
     /// equal up to f32 accumulation error.
     #[test]
     fn forward_and_gradients_match_the_f32_convolution_of_rounded_inputs() {
-        if !amx_or_skip("forward_and_gradients_match_the_f32_convolution_of_rounded_inputs") {
+        if !bf16_or_skip("forward_and_gradients_match_the_f32_convolution_of_rounded_inputs") {
             return;
         }
         let g = ConvGeom { h: 7, w: 9, cin: 32, cout: 20 };

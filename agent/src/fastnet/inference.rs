@@ -37,7 +37,7 @@ impl Inference {
     }
 
     /// The network initialised from `seed`, in the arithmetic `precision` resolves to here (bf16
-    /// where AMX runs it: faster at the actors' batches too, see docs/PERFORMANCE.md), and what was
+    /// where a bf16 kernel runs it: faster at the actors' batches too, see docs/PERFORMANCE.md), and what was
     /// chosen and why, for the caller's log.
     #[must_use]
     pub fn with_precision(shape: NetShape, seed: u64, threads: usize, precision: Precision) -> (Self, Chosen) {

@@ -4,11 +4,13 @@
 //! Training and the actors' inference use it; candle's network (`crate::reference`, behind the
 //! `candle` feature) is what it is tested against.
 //!
-//! - [`gemm`]: the bounds-checked safe wrapper around the `gemm` crate (`unsafe`, with `amx`).
-//! - [`amx`]: AMX detection and the bf16 tile kernel behind a bounds-checked safe interface.
+//! - [`gemm`]: the bounds-checked safe wrapper around the `gemm` crate (`unsafe`, with the two
+//!   bf16 kernels).
+//! - [`bf16_matmul`]: the bf16 product's layouts and bounds-checked safe interface, and the choice
+//!   of kernel: [`amx`] (Intel's tiles) or [`avx512_bf16`] (`vdpbf16ps`, where AMX is absent).
 //! - [`bf16`]: bfloat16 rounding and conversion.
 //! - [`conv`]: 3×3 convolution forward, kernel gradient and input gradient of one image.
-//! - [`conv_bf16`]: the wide layers' convolution on the AMX bf16 kernel.
+//! - [`conv_bf16`]: the wide layers' convolution on a bf16 kernel.
 //! - [`conv_direct`]: the first layer computed directly, fused with bias, ReLU and pooling.
 //! - [`pool`]: fused bias + ReLU + 2×2 average pooling and its backward pass.
 //! - [`model`]: the whole network, forward and backward, over a batch.
@@ -18,8 +20,10 @@
 //! - [`params`]: parameters in candle's layout, their seeded initialisation, and Adam.
 
 pub mod amx;
+pub mod avx512_bf16;
 pub mod bands;
 pub mod bf16;
+pub mod bf16_matmul;
 pub mod conv;
 pub mod conv_bf16;
 pub mod conv_direct;

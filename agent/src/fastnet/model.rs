@@ -7,9 +7,9 @@
 //! layers run on the whole batch with `gemm`'s own threads. A single image (an actor's inference)
 //! is split across the threads instead, by bands of lines and of units (`fastnet::bands`).
 
-use super::amx::PackedB;
 use super::bands;
 use super::bf16;
+use super::bf16_matmul::PackedB;
 use super::conv::{self, ConvGeom};
 use super::conv_bf16::{self, Operands};
 use super::conv_direct;
@@ -33,7 +33,7 @@ struct Part {
     /// Gradient of layers 2 and 3's input, conv-out layout, per image.
     in_grad: [Vec<f32>; 3],
     patches: Vec<f32>,
-    /// bf16 path: each layer's padded input in bf16, per image (layers that run on AMX).
+    /// bf16 path: each layer's padded input in bf16, per image (layers that run on a bf16 kernel).
     input_bf16: [Vec<u16>; 3],
     /// bf16 path, one image at a time: the input transposed, the output gradient packed and
     /// in bf16.
@@ -71,7 +71,7 @@ pub struct FastNet {
     dense_wt: [Vec<f32>; 2],
     k_major: [Vec<f32>; 3],
     flipped: [Vec<f32>; 3],
-    /// Whether the layers that fit (`conv_bf16::fits`) run in bf16 on AMX, and their kernels
+    /// Whether the layers that fit (`conv_bf16::fits`) run in bf16, and their kernels
     /// packed for it.
     bf16: bool,
     k_packed: [PackedB; 3],
@@ -88,15 +88,16 @@ impl FastNet {
     }
 
     /// A network of `shape` on up to `threads` threads whose wide convolutions run in bf16 on
-    /// AMX when `bf16` (see `fastnet::precision` for choosing it); the first layer, the dense
-    /// layers, the gradients' sums and everything after them stay f32.
+    /// the machine's bf16 kernel (AMX or AVX512-BF16) when `bf16` (see `fastnet::precision` for
+    /// choosing it); the first layer, the dense layers, the gradients' sums and everything after
+    /// them stay f32.
     ///
     /// # Panics
-    /// If `bf16` is asked for where AMX is not available.
+    /// If `bf16` is asked for where neither bf16 kernel is available.
     #[must_use]
     pub fn with_precision(shape: NetShape, threads: usize, bf16: bool) -> Self {
-        if bf16 && let Err(why) = super::amx::available() {
-            panic!("FastNet::with_precision: bf16 without AMX ({why})");
+        if bf16 && let Err(why) = super::bf16_matmul::available() {
+            panic!("FastNet::with_precision: bf16 without a bf16 kernel ({why})");
         }
         let (f, mut h, mut w) = (shape.filters, shape.height, shape.width);
         let mut geoms = [ConvGeom { h, w, cin: shape.channels, cout: f }; 3];

@@ -174,7 +174,7 @@ enum BenchCommand {
         /// the old spelling).
         #[arg(long, alias = "reference")]
         candle: bool,
-        /// Arithmetic: f32, bf16 (AMX), both (alternating, in one process), or auto (what
+        /// Arithmetic: f32, bf16 (AMX or AVX512-BF16), both (alternating, in one process), or auto (what
         /// `[agent] precision = "auto"` runs here).
         #[arg(long, default_value = "auto", value_parser = ["auto", "f32", "bf16", "both"])]
         precision: String,
@@ -202,7 +202,7 @@ enum BenchCommand {
         /// `ack` (batches acknowledged once in the replay log on disk) or `none`.
         #[arg(long, default_value = "ack", value_parser = parse_durability)]
         durability: agent::config::Durability,
-        /// The run's `[agent] precision`: auto, f32 or bf16 (AMX).
+        /// The run's `[agent] precision`: auto, f32 or bf16 (AMX or AVX512-BF16).
         #[arg(long, default_value = "auto")]
         precision: agent::fastnet::Precision,
         /// Print one JSON object on the last line of stdout.

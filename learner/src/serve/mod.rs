@@ -162,12 +162,7 @@ async fn start_with(opts: ServeOptions, train: Trainer) -> Result<Running> {
 
     let shape = cfg.net_shape();
     let precision = cfg.agent.precision.resolve().context("[agent] precision")?;
-    tracing::info!(
-        bf16 = precision.bf16,
-        "network arithmetic: {} ({})",
-        if precision.bf16 { "bf16 on AMX" } else { "f32" },
-        precision.reason
-    );
+    tracing::info!(bf16 = precision.bf16, "network arithmetic: {} ({})", precision.arithmetic(), precision.reason);
     let mut dqn = Dqn::new(shape, &cfg.agent);
     let mut counters = Counters::default();
     if opts.resume {

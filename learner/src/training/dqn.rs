@@ -79,7 +79,7 @@ impl Dqn {
     #[must_use]
     ///
     /// # Panics
-    /// If `cfg.precision` cannot run here (`bf16` without AMX): check it with
+    /// If `cfg.precision` cannot run here (`bf16` without a bf16 kernel): check it with
     /// `Precision::resolve` first, as `learner serve` does.
     pub fn with_threads(shape: NetShape, cfg: &AgentConfig, threads: usize) -> Self {
         let chosen = cfg.precision.resolve().unwrap_or_else(|e| panic!("Dqn: {e}"));

@@ -52,9 +52,10 @@ pub fn rate(flops: f64, ms: f64, peak: f64) -> (f64, f64) {
 }
 
 /// The machine's bf16 limit as this code reaches it: GFLOP/s of a square `CALIBRATION_N` bf16
-/// product on one thread through the AMX kernel (`agent::fastnet::amx`), median of `reps`.
+/// product on one thread through the machine's bf16 kernel (`agent::fastnet::bf16_matmul`: AMX or
+/// AVX512-BF16), median of `reps`.
 pub fn bf16_peak_gflops(reps: usize) -> f64 {
-    use agent::fastnet::amx::{AView, PackedB, matmul};
+    use agent::fastnet::bf16_matmul::{AView, PackedB, matmul};
     use agent::fastnet::gemm::View;
     let n = CALIBRATION_N;
     let a: Vec<u16> = (0..n * n).map(|i| agent::fastnet::bf16::from_f32(((i * 7 + 3) % 1000) as f32 / 500.0 - 1.0)).collect();

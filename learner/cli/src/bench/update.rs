@@ -38,13 +38,13 @@ fn random_batch(shape: &NetShape, batch: usize) -> Batch {
 /// optimizer step) of the paper's network at `input` with batch `batch` on `threads` threads,
 /// and forward passes at batch 1 and at `forward_batch`, in each of `precisions` (`f32`, `bf16`),
 /// alternating between them call by call so that both see the same machine; calibrates the
-/// machine (a square f32 GEMM on 1 and on `threads` threads, and a bf16 one where AMX runs) and
+/// machine (a square f32 GEMM on 1 and on `threads` threads, and a bf16 one where a bf16 kernel runs) and
 /// gives each figure as a fraction of that peak. With one precision the figures are top-level
 /// fields; with two, each has its own object and `bf16_over_f32` their ratios. With `reference`,
 /// also times candle's own implementation of the same update's forward and backward passes.
 ///
 /// # Errors
-/// `bf16` where AMX is absent (the message says why), or candle's failure.
+/// `bf16` where no bf16 kernel runs (the message says why), or candle's failure.
 pub fn train(
     input: (usize, usize, usize),
     batch: usize,
@@ -64,7 +64,7 @@ pub fn train(
     let load_before = load_average();
     let peak_1 = gemm_peak_gflops(1, 5);
     let peak = if threads == 1 { peak_1 } else { gemm_peak_gflops(threads, 5) };
-    let peak_bf16 = agent::fastnet::amx::available().is_ok().then(|| bf16_peak_gflops(5));
+    let peak_bf16 = agent::fastnet::bf16_matmul::available().is_ok().then(|| bf16_peak_gflops(5));
     tracing::info!(peak_gflops_1_thread = peak_1, peak_gflops = peak, ?peak_bf16, threads, "GEMM calibration");
     let update_batch = random_batch(&shape, batch);
     let b = random_batch(&shape, forward_batch);
@@ -121,6 +121,7 @@ pub fn train(
         "calibration": format!("{CALIBRATION_N}x{CALIBRATION_N}x{CALIBRATION_N} f32 GEMM, median of 5"),
         "peak_gflops_bf16_1_thread": peak_bf16,
         "amx": agent::fastnet::amx::available().err().unwrap_or("available"),
+        "bf16_kernel": agent::fastnet::bf16_matmul::available().map_or_else(|why| format!("none: {why}"), |k| k.name().to_string()),
         "cpu": cpu_model(),
         "implementation": "fastnet",
         "load_before": load_before,
