@@ -8,7 +8,7 @@
 
 use std::sync::OnceLock;
 
-use super::bf16_matmul::{AView, K_STEP, PackedB};
+use super::bf16_layout::{AView, K_STEP, PackedB};
 use super::gemm::View;
 
 /// Rows (and columns) of one accumulator tile.

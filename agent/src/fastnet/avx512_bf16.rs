@@ -11,7 +11,7 @@
 
 #![allow(unsafe_code)]
 
-use super::bf16_matmul::{AView, K_STEP, PackedB};
+use super::bf16_layout::{AView, K_STEP, PackedB};
 use super::gemm::View;
 
 /// Rows of one register block.

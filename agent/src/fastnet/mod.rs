@@ -6,8 +6,9 @@
 //!
 //! - [`gemm`]: the bounds-checked safe wrapper around the `gemm` crate (`unsafe`, with the two
 //!   bf16 kernels).
-//! - [`bf16_matmul`]: the bf16 product's layouts and bounds-checked safe interface, and the choice
-//!   of kernel: [`amx`] (Intel's tiles) or [`avx512_bf16`] (`vdpbf16ps`, where AMX is absent).
+//! - [`bf16_matmul`]: the bf16 product's bounds-checked safe interface and the choice of kernel:
+//!   [`amx`] (Intel's tiles) or [`avx512_bf16`] (`vdpbf16ps`, where AMX is absent).
+//! - [`bf16_layout`]: the layouts of that product's operands, which both kernels multiply.
 //! - [`bf16`]: bfloat16 rounding and conversion.
 //! - [`conv`]: 3×3 convolution forward, kernel gradient and input gradient of one image.
 //! - [`conv_bf16`]: the wide layers' convolution on a bf16 kernel.
@@ -23,6 +24,7 @@ pub mod amx;
 pub mod avx512_bf16;
 pub mod bands;
 pub mod bf16;
+pub mod bf16_layout;
 pub mod bf16_matmul;
 pub mod conv;
 pub mod conv_bf16;

@@ -1,0 +1,113 @@
+//! The layouts of the bf16 product's operands (`bf16_matmul`), which both of its kernels multiply
+//! (`bf16` values are `u16` bit patterns, see `fastnet::bf16`):
+//! - the left matrix is read in place through an [`AView`]: rows at a stride, each row's K values
+//!   in `segments` runs of `seg_len` (a multiple of 32) consecutive values, `seg_stride` apart. A
+//!   convolution reads its padded image this way (a run per kernel row), with no packing;
+//! - the right matrix is a [`PackedB`]: K padded to a multiple of 32 with zeros, N to a multiple
+//!   of 16, and rows taken in pairs (`[k / 2][n][k % 2]`), the layout both instructions multiply by.
+
+use super::gemm::View;
+
+/// Values of K one step of either kernel consumes (64 bytes of bf16: one AMX tile row).
+pub const K_STEP: usize = 32;
+/// Columns of the right matrix one step covers (one AMX tile, one zmm register of f32).
+pub(super) const N_STEP: usize = 16;
+
+/// The left matrix of a bf16 product (`bf16_matmul::matmul`) inside a `u16` slice: element (i, k) at
+/// `offset + i·row_stride + (k / seg_len)·seg_stride + k % seg_len`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct AView {
+    pub offset: usize,
+    pub rows: usize,
+    pub row_stride: usize,
+    pub segments: usize,
+    pub seg_len: usize,
+    pub seg_stride: usize,
+}
+
+impl AView {
+    /// A dense row-major `rows × k` matrix (`k` a multiple of [`K_STEP`]) with rows `row_stride` apart.
+    #[must_use]
+    pub fn rows(offset: usize, rows: usize, k: usize, row_stride: usize) -> Self {
+        Self { offset, rows, row_stride, segments: 1, seg_len: k, seg_stride: 0 }
+    }
+
+    /// K, the values of one row.
+    #[must_use]
+    pub fn k(&self) -> usize {
+        self.segments * self.seg_len
+    }
+
+    /// One past the largest index the view reads, `None` if that overflows.
+    pub(super) fn end(&self) -> Option<usize> {
+        if self.rows == 0 || self.k() == 0 {
+            return Some(self.offset);
+        }
+        let last_row = (self.rows - 1).checked_mul(self.row_stride)?;
+        let last_seg = (self.segments - 1).checked_mul(self.seg_stride)?;
+        self.offset.checked_add(last_row)?.checked_add(last_seg)?.checked_add(self.seg_len)
+    }
+}
+
+/// A right matrix (`k × n`) in the pair-interleaved layout of `tdpbf16ps`, K padded with zeros to a
+/// multiple of [`K_STEP`] and N to a multiple of 16.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct PackedB {
+    pub(super) data: Vec<u16>,
+    pub(super) k_pad: usize,
+    pub(super) n: usize,
+    pub(super) n_pad: usize,
+}
+
+impl PackedB {
+    /// Packs the `k × n` f32 matrix `src` (read through `v`, any strides) rounded to bf16 (a NaN
+    /// in a contiguous source may come out infinite: `bf16::from_f32_finite`).
+    ///
+    /// # Panics
+    /// If the view leaves `src`.
+    pub fn pack(&mut self, src: &[f32], v: View) {
+        let (k, n) = (v.rows, v.cols);
+        self.k_pad = k.div_ceil(K_STEP) * K_STEP;
+        self.n = n;
+        self.n_pad = n.div_ceil(N_STEP) * N_STEP;
+        self.data.clear();
+        self.data.resize(self.k_pad * self.n_pad, 0);
+        if k > 0 && n > 0 {
+            assert!(
+                (v.offset + (k - 1) * v.row_stride + (n - 1) * v.col_stride) < src.len(),
+                "PackedB::pack: {v:?} leaves a slice of {}",
+                src.len()
+            );
+        }
+        if v.col_stride == 1 {
+            // Rows of the source are contiguous: interleave each pair in one pass.
+            for (pair, out) in self.data.chunks_exact_mut(2 * self.n_pad).take(k.div_ceil(2)).enumerate() {
+                let even = &src[v.offset + 2 * pair * v.row_stride..][..n];
+                if 2 * pair + 1 < k {
+                    let odd = &src[v.offset + (2 * pair + 1) * v.row_stride..][..n];
+                    for ((o, &e), &d) in out.chunks_exact_mut(2).zip(even).zip(odd) {
+                        o[0] = super::bf16::from_f32_finite(e);
+                        o[1] = super::bf16::from_f32_finite(d);
+                    }
+                } else {
+                    for (o, &e) in out.chunks_exact_mut(2).zip(even) {
+                        o[0] = super::bf16::from_f32_finite(e);
+                    }
+                }
+            }
+            return;
+        }
+        for kk in 0..k {
+            let row = &mut self.data[(kk / 2) * 2 * self.n_pad..(kk / 2 + 1) * 2 * self.n_pad];
+            for j in 0..n {
+                row[2 * j + kk % 2] = super::bf16::from_f32(src[v.offset + kk * v.row_stride + j * v.col_stride]);
+            }
+        }
+    }
+
+    /// K (padded) and N of the matrix.
+    #[must_use]
+    pub fn dims(&self) -> (usize, usize) {
+        (self.k_pad, self.n)
+    }
+}
