@@ -37,7 +37,21 @@ impl Kernel {
             Self::Avx512Bf16 => "avx512-bf16",
         }
     }
+
+    /// Whether this process may run it, else why not.
+    ///
+    /// # Errors
+    /// The reason the CPU or the OS rules it out.
+    pub fn runs_here(self) -> Result<(), &'static str> {
+        match self {
+            Self::Amx => amx::available(),
+            Self::Avx512Bf16 => avx512_bf16::available(),
+        }
+    }
 }
+
+/// Every kernel, fastest first (AMX has 16× the products per instruction).
+const KERNELS: [Kernel; 2] = [Kernel::Amx, Kernel::Avx512Bf16];
 
 /// The environment variable that narrows the choice to one kernel (`amx` or `avx512-bf16`), for
 /// measuring and testing the other kernel on a machine that has both, as oneDNN's
@@ -54,32 +68,24 @@ pub fn available() -> Result<Kernel, &'static str> {
 
 /// The kernel for a [`KERNEL_ENV`] value (`None`: unset).
 fn choose(asked: Option<&str>) -> Result<Kernel, String> {
-    let named = |kernel: Kernel, runs: Result<(), &'static str>| {
-        runs.map(|()| kernel).map_err(|why| format!("{KERNEL_ENV}={} asked for, and {why}", kernel.env_name()))
-    };
     match asked {
-        None | Some("") => match (amx::available(), avx512_bf16::available()) {
-            (Ok(()), _) => Ok(Kernel::Amx),
-            (Err(_), Ok(())) => Ok(Kernel::Avx512Bf16),
-            (Err(no_amx), Err(no_avx)) => Err(format!("{no_amx} and {no_avx}")),
-        },
-        Some("amx") => named(Kernel::Amx, amx::available()),
-        Some("avx512-bf16") => named(Kernel::Avx512Bf16, avx512_bf16::available()),
-        Some(other) => Err(format!("{KERNEL_ENV}={other:?} is not a kernel (valid: amx, avx512-bf16, or unset)")),
+        None | Some("") => KERNELS.into_iter().find(|k| k.runs_here().is_ok()).ok_or_else(|| {
+            let why: Vec<&str> = KERNELS.iter().filter_map(|k| k.runs_here().err()).collect();
+            why.join(" and ")
+        }),
+        Some(name) => {
+            let Some(kernel) = KERNELS.into_iter().find(|k| k.env_name() == name) else {
+                return Err(format!("{KERNEL_ENV}={name:?} is not a kernel (valid: amx, avx512-bf16, or unset)"));
+            };
+            kernel.runs_here().map(|()| kernel).map_err(|why| format!("{KERNEL_ENV}={name} asked for, and {why}"))
+        }
     }
 }
 
 /// Every kernel this machine can run (the tests check each, not only the one [`available`] picks).
 #[must_use]
 pub fn kernels_here() -> Vec<Kernel> {
-    let mut k = Vec::new();
-    if amx::available().is_ok() {
-        k.push(Kernel::Amx);
-    }
-    if avx512_bf16::available().is_ok() {
-        k.push(Kernel::Avx512Bf16);
-    }
-    k
+    KERNELS.into_iter().filter(|k| k.runs_here().is_ok()).collect()
 }
 
 /// `dst = a · b`, or `dst += a · b` when `accumulate`, in bf16 with f32 accumulation, on the
@@ -106,11 +112,7 @@ pub fn matmul(dst: &mut [f32], d: View, accumulate: bool, a: &[u16], av: AView, 
 /// As [`matmul`], or if `kernel` cannot run here.
 pub fn matmul_on(kernel: Kernel, dst: &mut [f32], d: View, accumulate: bool, a: &[u16], av: AView, b: &PackedB) {
     check(dst, d, a, av, b);
-    let runs = match kernel {
-        Kernel::Amx => amx::available(),
-        Kernel::Avx512Bf16 => avx512_bf16::available(),
-    };
-    if let Err(why) = runs {
+    if let Err(why) = kernel.runs_here() {
         panic!("bf16_matmul::matmul on {}: {why}", kernel.name());
     }
     // SAFETY: the kernel runs here (checked just above) and the operands passed `check`.
