@@ -8,13 +8,11 @@
 
 use std::sync::OnceLock;
 
-use super::bf16_layout::{AView, K_STEP, PackedB};
+use super::bf16_layout::{AView, PackedB};
 use super::gemm::View;
 
 /// Rows (and columns) of one accumulator tile.
 const TILE: usize = 16;
-/// K steps of one pass over the output (192 values: one kernel row of a 64-channel convolution).
-const K_BLOCK: usize = 6;
 
 /// Whether this process may run the AMX kernel: `Ok` on a CPU with AMX-TILE and AMX-BF16 whose
 /// OS enables and grants the tile state, else the reason it may not (for the log line that says
@@ -82,52 +80,45 @@ fn detect() -> Result<(), &'static str> {
 /// AMX is [`available`], and `bf16_matmul::matmul` has checked the views against their slices
 /// and the shapes against each other, with at least one row, one column and one K step.
 pub(super) unsafe fn matmul_unchecked(dst: &mut [f32], d: View, accumulate: bool, a: &[u16], av: AView, b: &PackedB) {
-    let seg_chunks = av.seg_len / K_STEP;
     let mut config = TileConfig::default();
     let mut loaded = None;
-    let mut first = true;
-    // K in blocks of at most K_BLOCK steps, each swept over the whole output: a block's B panel
+    // K in passes of at most K_BLOCK steps, each swept over the whole output: a pass's B panel
     // (K_BLOCK·32 × N bf16: 24 KiB for N = 64) and one row strip pair of A (12 KiB) stay in L1
     // while the output's tiles are loaded and stored around them.
-    for seg in 0..av.segments {
-        for c0 in (0..seg_chunks).step_by(K_BLOCK) {
-            let chunks = (seg_chunks - c0).min(K_BLOCK);
-            let a_k = av.offset + seg * av.seg_stride + c0 * K_STEP;
-            let b_k = (seg * av.seg_len + c0 * K_STEP) / 2 * 2 * b.n_pad;
-            let acc = accumulate || !first;
-            first = false;
-            for i0 in (0..d.rows).step_by(2 * TILE) {
-                let mr0 = (d.rows - i0).min(TILE);
-                let mr1 = (d.rows - i0 - mr0).min(TILE);
-                for j0 in (0..d.cols).step_by(2 * TILE) {
-                    let nr0 = (d.cols - j0).min(TILE);
-                    let nr1 = (d.cols - j0 - nr0).min(TILE);
-                    let shape = (mr0, mr1, nr0, nr1);
-                    if loaded != Some(shape) {
-                        config.set(shape);
-                        // SAFETY: AMX is available (the caller's contract); the configuration is
-                        // well-formed (palette 1, at most 16 rows and 64 bytes per tile).
-                        unsafe { load_config(&config) };
-                        loaded = Some(shape);
-                    }
-                    let block = Block {
-                        // The second strips repeat the first where the block has only one:
-                        // their results are then computed and dropped, and nothing outside the
-                        // views is read.
-                        a0: a_k + i0 * av.row_stride,
-                        a1: a_k + (i0 + if mr1 > 0 { TILE } else { 0 }) * av.row_stride,
-                        b0: b_k + j0 * 2,
-                        b1: b_k + (j0 + if nr1 > 0 { TILE } else { 0 }) * 2,
-                        c: d.offset + i0 * d.row_stride + j0,
-                        c_second_rows: d.offset + (i0 + TILE) * d.row_stride + j0,
-                        tiles: (mr1 > 0, nr1 > 0),
-                    };
-                    // SAFETY: every tile row the kernel reads lies inside the views the caller
-                    // checked: A rows i0..i0 + mr (< av.rows), this block's K steps of one
-                    // segment; B's rows of those K steps, columns j0..j0 + nr (< n_pad); C rows
-                    // and columns inside `d`. Tiles are configured to those sizes.
-                    unsafe { block.run(dst, d.row_stride, acc, a, av.row_stride, chunks, b) };
+    for kb in av.k_blocks(b.n_pad) {
+        let (a_k, b_k, chunks) = (kb.a_k, kb.b_k, kb.chunks);
+        let acc = accumulate || !kb.first;
+        for i0 in (0..d.rows).step_by(2 * TILE) {
+            let mr0 = (d.rows - i0).min(TILE);
+            let mr1 = (d.rows - i0 - mr0).min(TILE);
+            for j0 in (0..d.cols).step_by(2 * TILE) {
+                let nr0 = (d.cols - j0).min(TILE);
+                let nr1 = (d.cols - j0 - nr0).min(TILE);
+                let shape = (mr0, mr1, nr0, nr1);
+                if loaded != Some(shape) {
+                    config.set(shape);
+                    // SAFETY: AMX is available (the caller's contract); the configuration is
+                    // well-formed (palette 1, at most 16 rows and 64 bytes per tile).
+                    unsafe { load_config(&config) };
+                    loaded = Some(shape);
                 }
+                let block = Block {
+                    // The second strips repeat the first where the block has only one:
+                    // their results are then computed and dropped, and nothing outside the
+                    // views is read.
+                    a0: a_k + i0 * av.row_stride,
+                    a1: a_k + (i0 + if mr1 > 0 { TILE } else { 0 }) * av.row_stride,
+                    b0: b_k + j0 * 2,
+                    b1: b_k + (j0 + if nr1 > 0 { TILE } else { 0 }) * 2,
+                    c: d.offset + i0 * d.row_stride + j0,
+                    c_second_rows: d.offset + (i0 + TILE) * d.row_stride + j0,
+                    tiles: (mr1 > 0, nr1 > 0),
+                };
+                // SAFETY: every tile row the kernel reads lies inside the views the caller
+                // checked: A rows i0..i0 + mr (< av.rows), this block's K steps of one
+                // segment; B's rows of those K steps, columns j0..j0 + nr (< n_pad); C rows
+                // and columns inside `d`. Tiles are configured to those sizes.
+                unsafe { block.run(dst, d.row_stride, acc, a, av.row_stride, chunks, b) };
             }
         }
     }

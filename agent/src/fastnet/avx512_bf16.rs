@@ -18,9 +18,6 @@ use super::gemm::View;
 const MR: usize = 6;
 /// 16-column vectors of one register block (64 columns).
 const NV: usize = 4;
-/// K steps of one pass over the output, as AMX's: one block's right panel (192 × 64 bf16, 24 KiB)
-/// stays in L1 while every row block streams past it.
-const K_BLOCK: usize = 6;
 
 /// Whether this process may run the kernel: `Ok` where the CPU has AVX-512F and AVX512-BF16 and the
 /// OS saves the zmm state, else the reason it may not.
@@ -47,39 +44,35 @@ pub fn available() -> Result<(), &'static str> {
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f,avx512bf16")]
 pub(super) unsafe fn matmul_unchecked(dst: &mut [f32], d: View, accumulate: bool, a: &[u16], av: AView, b: &PackedB) {
-    let seg_chunks = av.seg_len / K_STEP;
     let pair_row = 2 * b.n_pad;
-    let mut first = true;
-    for seg in 0..av.segments {
-        for c0 in (0..seg_chunks).step_by(K_BLOCK) {
-            let pairs = (seg_chunks - c0).min(K_BLOCK) * K_STEP / 2;
-            let a_k = av.offset + seg * av.seg_stride + c0 * K_STEP;
-            let b_k = (seg * av.seg_len + c0 * K_STEP) / 2 * pair_row;
-            let acc = accumulate || !first;
-            first = false;
-            for i0 in (0..d.rows).step_by(MR) {
-                let rows = (d.rows - i0).min(MR);
-                for j0 in (0..d.cols).step_by(16 * NV) {
-                    let cols = (d.cols - j0).min(16 * NV);
-                    let block = Block {
-                        c: dst.as_mut_ptr().wrapping_add(d.offset + i0 * d.row_stride + j0),
-                        ldc: d.row_stride,
-                        last_mask: match cols % 16 {
-                            0 => u16::MAX,
-                            r => (1u16 << r) - 1,
-                        },
-                        accumulate: acc,
-                        a: a.as_ptr().wrapping_add(a_k + i0 * av.row_stride),
-                        lda: av.row_stride,
-                        b: b.data.as_ptr().wrapping_add(b_k + 2 * j0),
-                        pair_row,
-                        pairs,
-                    };
-                    // SAFETY: rows i0..i0 + rows of A and C and columns j0..j0 + cols of C lie
-                    // inside the checked views; B's rows of this K block and columns up to the next
-                    // multiple of 16 (≤ n_pad) lie inside the packed matrix.
-                    unsafe { block.run_rows(rows, cols.div_ceil(16)) };
-                }
+    // K in passes of at most K_BLOCK steps, as AMX's: a pass's right panel (192 × 64 bf16,
+    // 24 KiB) stays in L1 while every row block streams past it.
+    for kb in av.k_blocks(b.n_pad) {
+        let (a_k, b_k) = (kb.a_k, kb.b_k);
+        let pairs = kb.chunks * K_STEP / 2;
+        let acc = accumulate || !kb.first;
+        for i0 in (0..d.rows).step_by(MR) {
+            let rows = (d.rows - i0).min(MR);
+            for j0 in (0..d.cols).step_by(16 * NV) {
+                let cols = (d.cols - j0).min(16 * NV);
+                let block = Block {
+                    c: dst.as_mut_ptr().wrapping_add(d.offset + i0 * d.row_stride + j0),
+                    ldc: d.row_stride,
+                    last_mask: match cols % 16 {
+                        0 => u16::MAX,
+                        r => (1u16 << r) - 1,
+                    },
+                    accumulate: acc,
+                    a: a.as_ptr().wrapping_add(a_k + i0 * av.row_stride),
+                    lda: av.row_stride,
+                    b: b.data.as_ptr().wrapping_add(b_k + 2 * j0),
+                    pair_row,
+                    pairs,
+                };
+                // SAFETY: rows i0..i0 + rows of A and C and columns j0..j0 + cols of C lie
+                // inside the checked views; B's rows of this K block and columns up to the next
+                // multiple of 16 (≤ n_pad) lie inside the packed matrix.
+                unsafe { block.run_rows(rows, cols.div_ceil(16)) };
             }
         }
     }

@@ -12,6 +12,25 @@ use super::gemm::View;
 pub const K_STEP: usize = 32;
 /// Columns of the right matrix one step covers (one AMX tile, one zmm register of f32).
 pub(super) const N_STEP: usize = 16;
+/// K steps of one pass of a kernel over the output (192 values: one kernel row of a 64-channel
+/// convolution): one pass's panel of B (24 KiB for N = 64) and a row block of A stay in L1 while
+/// the output streams past them.
+pub(super) const K_BLOCK: usize = 6;
+
+/// One pass of a kernel over the output: at most [`K_BLOCK`] consecutive K steps inside one
+/// segment of A.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) struct KBlock {
+    /// Index in A of row 0's first value of the block.
+    pub a_k: usize,
+    /// Index in the packed B's data of the block's first pair row.
+    pub b_k: usize,
+    /// K steps in the block.
+    pub chunks: usize,
+    /// Whether it is the first block (the output is written, not added to, unless the caller
+    /// accumulates).
+    pub first: bool,
+}
 
 /// The left matrix of a bf16 product (`bf16_matmul::matmul`) inside a `u16` slice: element (i, k) at
 /// `offset + i·row_stride + (k / seg_len)·seg_stride + k % seg_len`.
@@ -36,6 +55,21 @@ impl AView {
     #[must_use]
     pub fn k(&self) -> usize {
         self.segments * self.seg_len
+    }
+
+    /// Its K steps in passes of at most [`K_BLOCK`], in K's order, against a packed B of `n_pad`
+    /// columns.
+    pub(super) fn k_blocks(&self, n_pad: usize) -> impl Iterator<Item = KBlock> {
+        let seg_chunks = self.seg_len / K_STEP;
+        let (offset, seg_len, seg_stride) = (self.offset, self.seg_len, self.seg_stride);
+        (0..self.segments).flat_map(move |seg| {
+            (0..seg_chunks).step_by(K_BLOCK).map(move |c0| KBlock {
+                a_k: offset + seg * seg_stride + c0 * K_STEP,
+                b_k: (seg * seg_len + c0 * K_STEP) / 2 * 2 * n_pad,
+                chunks: (seg_chunks - c0).min(K_BLOCK),
+                first: seg == 0 && c0 == 0,
+            })
+        })
     }
 
     /// One past the largest index the view reads, `None` if that overflows.
@@ -109,5 +143,24 @@ impl PackedB {
     #[must_use]
     pub fn dims(&self) -> (usize, usize) {
         (self.k_pad, self.n)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn k_blocks_cover_k_in_order_without_crossing_a_segment() {
+        // 3 segments of 7 steps, 1000 values apart; B rows of 64 columns.
+        let av = AView { offset: 5, rows: 2, row_stride: 64, segments: 3, seg_len: 7 * K_STEP, seg_stride: 1000 };
+        let blocks: Vec<KBlock> = av.k_blocks(64).collect();
+        assert_eq!(blocks.iter().map(|b| b.chunks).collect::<Vec<_>>(), [6, 1, 6, 1, 6, 1]);
+        assert_eq!(blocks.iter().map(|b| b.first).collect::<Vec<_>>(), [true, false, false, false, false, false]);
+        // Segment 1's second block: 6 steps into segment 1 of A; K value 7·32 + 6·32 of B, whose
+        // pair rows hold 2 × 64 values.
+        assert_eq!(blocks[3].a_k, 5 + 1000 + 6 * K_STEP);
+        assert_eq!(blocks[3].b_k, (7 * K_STEP + 6 * K_STEP) / 2 * 2 * 64);
+        assert_eq!(AView::rows(0, 4, 0, 32).k_blocks(16).count(), 0);
     }
 }

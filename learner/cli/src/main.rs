@@ -174,8 +174,8 @@ enum BenchCommand {
         /// the old spelling).
         #[arg(long, alias = "reference")]
         candle: bool,
-        /// Arithmetic: f32, bf16 (AMX or AVX512-BF16), both (alternating, in one process), or auto (what
-        /// `[agent] precision = "auto"` runs here).
+        /// Arithmetic: f32, bf16 (AMX or AVX512-BF16), both (alternating, in one process), or auto
+        /// (what `[agent] precision = "auto"` runs here).
         #[arg(long, default_value = "auto", value_parser = ["auto", "f32", "bf16", "both"])]
         precision: String,
         /// Print one JSON object on the last line of stdout.

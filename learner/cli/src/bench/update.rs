@@ -38,8 +38,8 @@ fn random_batch(shape: &NetShape, batch: usize) -> Batch {
 /// optimizer step) of the paper's network at `input` with batch `batch` on `threads` threads,
 /// and forward passes at batch 1 and at `forward_batch`, in each of `precisions` (`f32`, `bf16`),
 /// alternating between them call by call so that both see the same machine; calibrates the
-/// machine (a square f32 GEMM on 1 and on `threads` threads, and a bf16 one where a bf16 kernel runs) and
-/// gives each figure as a fraction of that peak. With one precision the figures are top-level
+/// machine (a square f32 GEMM on 1 and on `threads` threads, and a bf16 one where a bf16 kernel
+/// runs) and gives each figure as a fraction of that peak. With one precision the figures are top-level
 /// fields; with two, each has its own object and `bf16_over_f32` their ratios. With `reference`,
 /// also times candle's own implementation of the same update's forward and backward passes.
 ///
