@@ -32,9 +32,10 @@ pub fn describe(err: &(dyn Error + 'static), attempt: &Attempt<'_>) -> String {
     let detail = chain.last().map(ToString::to_string).unwrap_or_default();
     // After a TLS 1.3 handshake that succeeded on this side, the server judges the client's
     // certificate; its alert often reaches the client only as text (h2 keeps io errors as
-    // strings) or not at all (the connection is closed under the first request).
+    // strings) or not at all (the connection is closed under the first request, which the
+    // channel may report only as "connection was not ready").
     if tls && attempt.connected {
-        let lost = ["eof", "reset", "closed", "broken pipe", "alert"].iter().any(|w| text.contains(w));
+        let lost = ["eof", "reset", "closed", "broken pipe", "alert", "not ready"].iter().any(|w| text.contains(w));
         if text.contains("certificaterequired") || (lost && !attempt.client_cert) {
             return describe_rustls(&rustls::Error::AlertReceived(AlertDescription::CertificateRequired), host);
         }
@@ -150,5 +151,17 @@ mod tests {
         }
         let other = std::io::Error::other("something else entirely");
         assert_eq!(describe(&other, &attempt(false)), "something else entirely");
+    }
+
+    /// A learner that wants a client certificate closes the connection under the first request;
+    /// the channel may say only that the connection was not ready (seen in CI under load).
+    #[test]
+    fn a_connection_lost_under_the_first_request_after_tls_is_the_client_certificate() {
+        let err = std::io::Error::other("transport error: connection was not ready");
+        let connected = |client_cert| Attempt { tls: true, client_cert, host: "learner", connected: true };
+        let without = describe(&err, &connected(false));
+        assert!(without.contains("requires a client certificate (mutual TLS)"), "{without}");
+        let with = describe(&err, &connected(true));
+        assert!(with.contains("the learner refused this client's certificate"), "{with}");
     }
 }
