@@ -6,6 +6,7 @@
 //! - the right matrix is a [`PackedB`]: K padded to a multiple of 32 with zeros, N to a multiple
 //!   of 16, and rows taken in pairs (`[k / 2][n][k % 2]`), the layout both instructions multiply by.
 
+use super::aligned::Aligned;
 use super::gemm::View;
 
 /// Values of K one step of either kernel consumes (64 bytes of bf16: one AMX tile row).
@@ -87,7 +88,8 @@ impl AView {
 /// multiple of [`K_STEP`] and N to a multiple of 16.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct PackedB {
-    pub(super) data: Vec<u16>,
+    /// Aligned to a cache line, as every tile row of it then is (rows are 64 bytes).
+    pub(super) data: Aligned<u16>,
     pub(super) k_pad: usize,
     pub(super) n: usize,
     pub(super) n_pad: usize,

@@ -8,6 +8,7 @@
 //! ([`PackedB`]); the input gradient is the forward convolution of the bf16 output gradient
 //! with the flipped kernel, as in `conv`.
 
+use super::aligned::Aligned;
 use super::bf16;
 use super::bf16_matmul::{self, AView, K_STEP, PackedB};
 use super::conv::{self, ConvGeom};
@@ -50,14 +51,15 @@ pub fn forward_rows(input: &[u16], kernel: &PackedB, g: &ConvGeom, first: usize,
 }
 
 /// Values of one channel's plane in [`transpose_padded`]'s layout: the padded image's pixels and
-/// a tail of zeros for the kernel gradient's last tile step to read.
+/// a tail of zeros for the kernel gradient's last tile step to read, rounded up to whole tile
+/// rows so that every plane starts a cache line (`aligned`), as the first does.
 #[must_use]
 pub fn plane(g: &ConvGeom) -> usize {
-    (g.h + 2) * g.pw() + K_STEP
+    ((g.h + 2) * g.pw() + K_STEP).next_multiple_of(K_STEP)
 }
 
 /// The padded image `input` (f32, pixel-major) as bf16 channel planes of [`plane`] values.
-pub fn transpose_padded(input: &[f32], g: &ConvGeom, out: &mut Vec<u16>) {
+pub fn transpose_padded(input: &[f32], g: &ConvGeom, out: &mut Aligned<u16>) {
     // Blocks of pixels whose channels fit in L1, so that each plane is written a run at a time.
     const PIXELS: usize = 16;
     let (c, p) = (g.cin, plane(g));
@@ -155,7 +157,7 @@ mod tests {
 
         let grad = rounded(&padded(&g, g.cout, 2.9));
         let (mut dk, mut dk_expected) = (vec![0.5f32; 9 * g.cin * g.cout], vec![0.5f32; 9 * g.cin * g.cout]);
-        let (mut input_t, mut grad_packed) = (Vec::new(), PackedB::default());
+        let (mut input_t, mut grad_packed) = (Aligned::default(), PackedB::default());
         transpose_padded(&input, &g, &mut input_t);
         pack_output_grad(&grad, &g, &mut grad_packed);
         kernel_grad(&input_t, &grad_packed, &g, &mut dk);

@@ -10,6 +10,7 @@
 //!   [`amx`] (Intel's tiles) or [`avx512_bf16`] (`vdpbf16ps`, where AMX is absent).
 //! - [`bf16_layout`]: the layouts of that product's operands, which both kernels multiply.
 //! - [`bf16`]: bfloat16 rounding and conversion.
+//! - [`aligned`]: buffers that start a cache line, for the bf16 kernels' operands.
 //! - [`conv`]: 3×3 convolution forward, kernel gradient and input gradient of one image.
 //! - [`conv_bf16`]: the wide layers' convolution on a bf16 kernel.
 //! - [`conv_direct`]: the first layer computed directly, fused with bias, ReLU and pooling.
@@ -20,6 +21,7 @@
 //! - [`precision`]: `[agent] precision` (auto, f32, bf16) resolved against the machine.
 //! - [`params`]: parameters in candle's layout, their seeded initialisation, and Adam.
 
+pub mod aligned;
 pub mod amx;
 pub mod avx512_bf16;
 pub mod bands;

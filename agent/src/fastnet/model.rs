@@ -7,6 +7,7 @@
 //! layers run on the whole batch with `gemm`'s own threads. A single image (an actor's inference)
 //! is split across the threads instead, by bands of lines and of units (`fastnet::bands`).
 
+use super::aligned::Aligned;
 use super::bands;
 use super::bf16;
 use super::bf16_matmul::PackedB;
@@ -27,21 +28,21 @@ struct Part {
     /// Padded input of each layer, per image.
     input: [Vec<f32>; 3],
     /// Convolution output (before bias and ReLU) of each layer, per image.
-    pre: [Vec<f32>; 3],
+    pre: [Aligned<f32>; 3],
     /// Padded gradient of each layer's pre-activation, per image (allocated on first backward).
     grad_padded: [Vec<f32>; 3],
     /// Gradient of layers 2 and 3's input, conv-out layout, per image.
-    in_grad: [Vec<f32>; 3],
+    in_grad: [Aligned<f32>; 3],
     patches: Vec<f32>,
     /// bf16 path: each layer's padded input in bf16, per image (layers that run on a bf16 kernel).
-    input_bf16: [Vec<u16>; 3],
+    input_bf16: [Aligned<u16>; 3],
     /// bf16 path, one image at a time: the input transposed, the output gradient packed and
     /// in bf16.
-    input_t: Vec<u16>,
+    input_t: Aligned<u16>,
     grad_packed: PackedB,
-    grad_bf16: Vec<u16>,
+    grad_bf16: Aligned<u16>,
     /// Kernel (k-major) and bias gradient partial sums.
-    dk: [Vec<f32>; 3],
+    dk: [Aligned<f32>; 3],
     db: [Vec<f32>; 3],
 }
 
@@ -158,11 +159,11 @@ impl FastNet {
                 for (l, g) in self.geoms.iter().enumerate() {
                     part.input[l] = vec![0.0; images * g.padded_in()];
                     // A direct layer's pre-activations are recomputed, never kept.
-                    part.pre[l] = if is_direct(l, g) { Vec::new() } else { vec![0.0; images * g.out_len()] };
-                    part.dk[l] = vec![0.0; 9 * g.cin * g.cout];
+                    part.pre[l] = if is_direct(l, g) { Aligned::default() } else { Aligned::zeroed(images * g.out_len()) };
+                    part.dk[l] = Aligned::zeroed(9 * g.cin * g.cout);
                     part.db[l] = vec![0.0; g.cout];
                     if self.bf16 && conv_bf16::fits(g) {
-                        part.input_bf16[l] = vec![0; images * g.padded_in()];
+                        part.input_bf16[l] = Aligned::zeroed(images * g.padded_in());
                     }
                 }
                 // Patches of the layers that gather them for a GEMM (not a direct first layer).
@@ -434,7 +435,7 @@ impl Part {
                 self.grad_padded[l] = vec![0.0; self.images * g.padded_out()];
             }
             if l > 0 && self.in_grad[l].len() != self.images * g.in_grad_len() {
-                self.in_grad[l] = vec![0.0; self.images * g.in_grad_len()];
+                self.in_grad[l] = Aligned::zeroed(self.images * g.in_grad_len());
             }
         }
         for img in 0..self.images {

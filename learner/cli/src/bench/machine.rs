@@ -58,11 +58,13 @@ pub fn bf16_peak_gflops(reps: usize) -> f64 {
     use agent::fastnet::bf16_matmul::{AView, PackedB, matmul};
     use agent::fastnet::gemm::View;
     let n = CALIBRATION_N;
+    // Aligned as the network's operands are (`fastnet::aligned`).
     let a: Vec<u16> = (0..n * n).map(|i| agent::fastnet::bf16::from_f32(((i * 7 + 3) % 1000) as f32 / 500.0 - 1.0)).collect();
+    let a = agent::fastnet::aligned::Aligned::from_slice(&a);
     let b: Vec<f32> = (0..n * n).map(|i| ((i * 13 + 5) % 1000) as f32 / 500.0 - 1.0).collect();
     let mut packed = PackedB::default();
     packed.pack(&b, View::rows(0, n, n, n));
-    let mut c = vec![0f32; n * n];
+    let mut c = agent::fastnet::aligned::Aligned::<f32>::zeroed(n * n);
     let ms = median_ms(reps, || matmul(&mut c, View::rows(0, n, n, n), false, &a, AView::rows(0, n, n, n), &packed));
     2.0 * (n * n * n) as f64 / (ms * 1e6)
 }
