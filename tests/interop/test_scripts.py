@@ -18,3 +18,16 @@ def test_an_unknown_agent_is_refused_by_name_with_the_valid_ones(args, script):
     assert f"{script}: --agents: unknown agent `no-such-agent`; expected some of:" in p.stderr
     assert "hybrid-tuned" in p.stderr.split("expected some of:")[1], "the valid names are listed"
     assert "hybrid-tuned," not in p.stderr, "the names are checked one by one"
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--precisions", "f32,f16"], "precision-parity.sh: --precisions: `f16` is not f32 or bf16"),
+    (["--seeds", "0"], "precision-parity.sh"),
+    (["--frobnicate"], "precision-parity.sh: unknown argument `--frobnicate`"),
+])
+def test_precision_parity_refuses_a_bad_flag_before_training(args, message):
+    p = subprocess.run(["bash", "scripts/precision-parity.sh", *args, "--no-build"], cwd=ROOT,
+                       capture_output=True, text=True, timeout=60)
+    assert p.returncode == 2, p.stderr
+    assert message in p.stderr
+    assert "training to" not in p.stderr, "nothing was trained"
