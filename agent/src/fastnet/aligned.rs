@@ -23,8 +23,12 @@ impl<T: Copy + Default> Aligned<T> {
     /// `len` default values (zeros).
     #[must_use]
     pub fn zeroed(len: usize) -> Self {
-        let mut a = Self { buf: Vec::new(), start: 0 };
-        a.resize(len, T::default());
+        // `vec!` of zeros asks the allocator for zeroed memory (calloc: fresh pages need no
+        // writing), where `resize` would write every value.
+        let buf = vec![T::default(); len + slack::<T>()];
+        let start = line_offset(&buf);
+        let mut a = Self { buf, start };
+        a.buf.truncate(start + len);
         a
     }
 
@@ -50,21 +54,28 @@ impl<T: Copy + Default> Aligned<T> {
 
     /// Makes room for `len` values without moving the storage again, keeping the values.
     fn reserve(&mut self, len: usize) {
-        let slack = LINE / size_of::<T>().max(1);
         if self.buf.capacity() >= self.start + len && self.buf.capacity() > 0 {
             return;
         }
-        let mut buf: Vec<T> = Vec::with_capacity(len + slack);
-        // Elements from the allocation's start to the next line: T's alignment divides LINE
-        // for the types used here (u16, f32), so the count is whole.
-        let misalignment = buf.as_ptr().addr() % LINE;
-        let start = (LINE - misalignment) % LINE / size_of::<T>().max(1);
+        let mut buf: Vec<T> = Vec::with_capacity(len + slack::<T>());
+        let start = line_offset(&buf);
         buf.resize(start, T::default());
         buf.extend_from_slice(&self.buf[self.start..]);
         self.buf = buf;
         self.start = start;
         debug_assert_eq!(self.buf[self.start..].as_ptr().addr() % LINE, 0);
     }
+}
+
+/// Elements of slack that leave room to start a line anywhere in an allocation.
+fn slack<T>() -> usize {
+    LINE / size_of::<T>().max(1)
+}
+
+/// Elements from the start of `buf`'s allocation to the next line: T's alignment divides
+/// [`LINE`] for the types used here (u16, f32), so the count is whole.
+fn line_offset<T>(buf: &[T]) -> usize {
+    (LINE - buf.as_ptr().addr() % LINE) % LINE / size_of::<T>().max(1)
 }
 
 impl<T> Deref for Aligned<T> {
