@@ -69,13 +69,14 @@ impl<T: Copy + Default> Aligned<T> {
 
 /// Elements of slack that leave room to start a line anywhere in an allocation.
 fn slack<T>() -> usize {
-    LINE / size_of::<T>().max(1)
+    const { assert!(size_of::<T>() > 0 && LINE.is_multiple_of(size_of::<T>()), "Aligned: elements must tile a cache line") };
+    LINE / size_of::<T>()
 }
 
 /// Elements from the start of `buf`'s allocation to the next line: T's alignment divides
 /// [`LINE`] for the types used here (u16, f32), so the count is whole.
 fn line_offset<T>(buf: &[T]) -> usize {
-    (LINE - buf.as_ptr().addr() % LINE) % LINE / size_of::<T>().max(1)
+    (LINE - buf.as_ptr().addr() % LINE) % LINE / size_of::<T>()
 }
 
 impl<T> Deref for Aligned<T> {
