@@ -8,8 +8,8 @@
 # Each (precision, seed) run keeps what the table needs in experiments/precision-parity/PREC/seedS/
 # (config, evaluations, a compact run.json: results.py keep-run); a run whose run.json exists is
 # done and skipped, and a stopped run continues from its checkpoint in runs/precision-parity/. The
-# table at the end sets each run's mean completion and successes beside RESULTS.md's hybrid-tuned
-# seed spread.
+# table at the end gives each run's mean completion and completed runs per town (to read against
+# RESULTS.md's hybrid-tuned seed spread).
 #
 # Usage: scripts/precision-parity.sh [--seeds N] [--env-steps N] [--precisions f32,bf16] [--no-build]
 set -euo pipefail
@@ -21,7 +21,7 @@ while [[ $# -gt 0 ]]; do
     case "$1" in
         --seeds) seeds="${2:?--seeds needs a number}"; shift 2 ;;
         --env-steps) env_steps="${2:?--env-steps needs a number}"; shift 2 ;;
-        --precisions) precisions="${2:?--precisions needs f32, bf16 or both}"; shift 2 ;;
+        --precisions) precisions="${2:?--precisions needs f32, bf16 or f32,bf16}"; shift 2 ;;
         --no-build) build=0; shift ;;
         -h|--help) sed -n '2,14p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
         *) echo "precision-parity.sh: unknown argument \`$1\` (see --help)" >&2; exit 2 ;;
