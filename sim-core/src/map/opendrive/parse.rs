@@ -16,6 +16,9 @@ pub const MAX_ROADS: usize = 20_000;
 pub const MAX_ROAD_LENGTH: f64 = 10_000.0;
 /// Coordinates farther from the origin than this are refused, metres.
 pub const MAX_COORDINATE: f64 = 1.0e6;
+/// Curvatures beyond this are refused, 1/m: no road bends tighter than a 1 m radius (Town01's
+/// tightest is 0.24), and a spiral's integration cost grows with its curvature.
+pub const MAX_CURVATURE: f64 = 1.0;
 /// Geometry pieces shorter than this are skipped (exporters write slivers of 1e-10 m).
 const MIN_PIECE: f64 = 1e-6;
 
@@ -311,6 +314,20 @@ fn road<'input>(r: &mut Reader<'_, 'input>, n: Node<'_, 'input>) -> Result<Road,
                 );
             }
         };
+        let curvatures: &[(&str, f64)] = match shape {
+            Shape::Arc { curvature } => &[("curvature", curvature)],
+            Shape::Spiral { start, end } => &[("curvStart", start), ("curvEnd", end)],
+            _ => &[],
+        };
+        if let Some((attr, k)) = curvatures.iter().find(|(_, k)| k.abs() > MAX_CURVATURE) {
+            return Err(r.err(
+                shape_node,
+                format!(
+                    "{ctx}: <{}> `{attr}` is {k} 1/m; expected within ±{MAX_CURVATURE} (a radius of at least 1 m)",
+                    shape_node.tag_name().name()
+                ),
+            ));
+        }
         if len < MIN_PIECE {
             continue;
         }
