@@ -5,25 +5,29 @@
 # (`actor eval --runs 5 --seed 0`). The bf16 runs need a bf16 kernel here (AMX, or AVX512-BF16 as
 # on AMD Zen 4); `actor train` refuses `bf16` elsewhere, naming why.
 #
-# Each (precision, seed) run keeps what the table needs in experiments/precision-parity/PREC/seedS/
-# (config, evaluations, a compact run.json: results.py keep-run); a run whose run.json exists is
-# done and skipped, and a stopped run continues from its checkpoint in runs/precision-parity/. The
-# table at the end gives each run's mean completion and completed runs per town (to read against
-# RESULTS.md's hybrid-tuned seed spread).
+# Each (precision, seed) run keeps what the table needs in OUT/PREC/seedS/ (OUT defaults to
+# experiments/precision-parity; give each machine class its own, e.g. `--out
+# experiments/precision-parity/amx`): config, evaluations, a compact run.json (results.py
+# keep-run). A run whose run.json exists is done and skipped, and a stopped run continues from its
+# checkpoint under runs/ (OUT's path less `experiments/`, e.g. runs/precision-parity/amx/PREC/seedS).
+# The table at the end gives each run's mean completion and completed runs per town (to read
+# against RESULTS.md's hybrid-tuned seed spread).
 #
-# Usage: scripts/precision-parity.sh [--seeds N] [--env-steps N] [--precisions f32,bf16] [--no-build]
+# Usage: scripts/precision-parity.sh [--seeds N] [--env-steps N] [--precisions f32,bf16] [--out DIR] [--no-build]
 set -euo pipefail
 seeds=1
 env_steps=400000
 precisions=f32,bf16
 build=1
+out_root=experiments/precision-parity
 while [[ $# -gt 0 ]]; do
     case "$1" in
         --seeds) seeds="${2:?--seeds needs a number}"; shift 2 ;;
         --env-steps) env_steps="${2:?--env-steps needs a number}"; shift 2 ;;
         --precisions) precisions="${2:?--precisions needs f32, bf16 or f32,bf16}"; shift 2 ;;
+        --out) out_root="${2:?--out needs a directory}"; shift 2 ;;
         --no-build) build=0; shift ;;
-        -h|--help) sed -n '2,14p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+        -h|--help) sed -n '2,16p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
         *) echo "precision-parity.sh: unknown argument \`$1\` (see --help)" >&2; exit 2 ;;
     esac
 done
@@ -38,10 +42,12 @@ done
 resume_on_interrupt precision-parity.sh
 [[ "$build" == 1 ]] && cargo build --release -q -p actor
 actor="${CARGO_TARGET_DIR:-target}/release/actor"
-out_root=experiments/precision-parity
+out_root=${out_root%/}
+run_root=${out_root#experiments/}
+run_root=${run_root#/}
 for seed in $(seq 1 "$seeds"); do
     for p in "${wanted[@]}"; do
-        name="hybrid-tuned-$p" dir="runs/precision-parity/$p/seed$seed" out="$out_root/$p/seed$seed"
+        name="hybrid-tuned-$p" dir="runs/$run_root/$p/seed$seed" out="$out_root/$p/seed$seed"
         if [[ -f "$out/run.json" ]]; then
             echo "== $name seed $seed: done ($out/run.json)" >&2
             continue
