@@ -9,7 +9,6 @@
 //! with the flipped kernel, as in `conv`.
 
 use super::aligned::Aligned;
-use super::bf16;
 use super::bf16_matmul::{self, AView, K_STEP, PackedB};
 use super::conv::{self, ConvGeom};
 use super::gemm::View;
@@ -58,8 +57,10 @@ pub fn plane(g: &ConvGeom) -> usize {
     ((g.h + 2) * g.pw() + K_STEP).next_multiple_of(K_STEP)
 }
 
-/// The padded image `input` (f32, pixel-major) as bf16 channel planes of [`plane`] values.
-pub fn transpose_padded(input: &[f32], g: &ConvGeom, out: &mut Aligned<u16>) {
+/// The padded image `input` (bf16, pixel-major: the forward pass's copy) as channel planes of
+/// [`plane`] values. A transpose of 16-bit values only: the forward pass already rounded them,
+/// so this pass does no arithmetic (it converted from f32 itself once, 7 % of a bf16 update).
+pub fn transpose_padded(input: &[u16], g: &ConvGeom, out: &mut Aligned<u16>) {
     // Blocks of pixels whose channels fit in L1, so that each plane is written a run at a time.
     const PIXELS: usize = 16;
     let (c, p) = (g.cin, plane(g));
@@ -69,7 +70,7 @@ pub fn transpose_padded(input: &[f32], g: &ConvGeom, out: &mut Aligned<u16>) {
         let n = values.len() / c;
         for (ch, plane) in out.chunks_exact_mut(p).enumerate() {
             for (d, px) in plane[block * PIXELS..][..n].iter_mut().zip(values.chunks_exact(c)) {
-                *d = bf16::from_f32_finite(px[ch]);
+                *d = px[ch];
             }
         }
     }
@@ -102,6 +103,7 @@ pub fn kernel_grad(input_t: &[u16], grad: &PackedB, g: &ConvGeom, dk: &mut [f32]
 
 #[cfg(test)]
 mod tests {
+    use super::super::bf16;
     use super::super::bf16_matmul::tests::bf16_or_skip;
     use super::*;
 
@@ -158,7 +160,12 @@ mod tests {
         let grad = rounded(&padded(&g, g.cout, 2.9));
         let (mut dk, mut dk_expected) = (vec![0.5f32; 9 * g.cin * g.cout], vec![0.5f32; 9 * g.cin * g.cout]);
         let (mut input_t, mut grad_packed) = (Aligned::default(), PackedB::default());
-        transpose_padded(&input, &g, &mut input_t);
+        transpose_padded(&input_b, &g, &mut input_t);
+        for (ch, plane) in input_t.chunks_exact(plane(&g)).enumerate() {
+            let pixels: Vec<u16> = input_b[..g.padded_in()].chunks_exact(g.cin).map(|px| px[ch]).collect();
+            assert_eq!(plane[..pixels.len()], pixels[..], "channel {ch}'s plane");
+            assert!(plane[pixels.len()..].iter().all(|&v| v == 0), "channel {ch}'s tail");
+        }
         pack_output_grad(&grad, &g, &mut grad_packed);
         kernel_grad(&input_t, &grad_packed, &g, &mut dk);
         conv::kernel_grad(&input, &grad, &g, &mut dk_expected, &mut [], 1);

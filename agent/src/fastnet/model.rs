@@ -136,6 +136,12 @@ impl FastNet {
     }
 
     /// Whether layer `l` runs on the bf16 kernel.
+    /// Threads the network computes on.
+    #[must_use]
+    pub fn threads(&self) -> usize {
+        self.threads
+    }
+
     fn layer_bf16(&self, l: usize) -> bool {
         self.bf16 && conv_bf16::fits(&self.geoms[l])
     }
@@ -467,7 +473,8 @@ impl Part {
                 }
                 let input = &self.input[l][img * pi..(img + 1) * pi];
                 if bf16_grads[l] {
-                    conv_bf16::transpose_padded(input, g, &mut self.input_t);
+                    // The forward pass's bf16 copy of this image (the same condition wrote it).
+                    conv_bf16::transpose_padded(&self.input_bf16[l][img * pi..(img + 1) * pi], g, &mut self.input_t);
                     conv_bf16::pack_output_grad(grad_padded, g, &mut self.grad_packed);
                     conv_bf16::kernel_grad(&self.input_t, &self.grad_packed, g, &mut self.dk[l]);
                 } else {

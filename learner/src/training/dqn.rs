@@ -136,7 +136,7 @@ impl Dqn {
             dq[k] = weight * td.clamp(-self.huber_delta, self.huber_delta) / n as f32;
         }
         self.net.backward(&self.online, &dq, &mut self.grads);
-        let grad_norm = self.adam.step(&mut self.online, &self.grads, self.grad_clip_norm);
+        let grad_norm = self.adam.step(&mut self.online, &self.grads, self.grad_clip_norm, self.net.threads());
         self.updates += 1;
         if self.updates.is_multiple_of(self.target_update_period) {
             self.sync_target();
@@ -246,7 +246,7 @@ mod tests {
         params.values[1] = vec![1.0, -2.0];
         grads.values[1] = vec![2.0, -4.0];
         let mut adam = Adam::new(shape(), 0.1);
-        adam.step(&mut params, &grads, 1e9);
+        adam.step(&mut params, &grads, 1e9, 1);
         assert!((params.values[1][0] - 0.9).abs() < 1e-5 && (params.values[1][1] + 1.9).abs() < 1e-5, "{:?}", params.values[1]);
         assert!(params.values[0].iter().all(|&x| x == 0.0), "zero gradient, no move");
     }
@@ -258,7 +258,7 @@ mod tests {
         // Gradient (3, 4): norm 5, reported before clipping.
         grads.values[1] = vec![3.0, 4.0];
         let mut adam = Adam::new(shape(), 0.1);
-        let norm = adam.step(&mut params, &grads, 1.0);
+        let norm = adam.step(&mut params, &grads, 1.0, 2);
         assert!((norm - 5.0).abs() < 1e-6);
         // Clipped to (0.6, 0.8): the first moment is (1 − β1)·g.
         let m = &adam.m.values[1];
