@@ -232,6 +232,7 @@ fn status(calls: u64) -> anyhow::Result<u64> {
         recent_episodes: Mutex::new(episodes),
         stats: Mutex::new(TrainStats { loss: Some(0.1), mean_q: Some(1.0), ..TrainStats::default() }),
         metrics: MetricsLog::open(dir.path())?,
+        ratio_session: Mutex::new(None),
         ratio_baseline: Mutex::new(None),
         data_arrived: (Mutex::new(()), Condvar::new()),
         shutdown: Default::default(),

@@ -112,9 +112,9 @@ pub struct TrainStats {
     pub held_secs: f64,
 }
 
-/// Where this session's replay ratio counts from: set by the training thread when the replay
-/// first reaches its minimum, cleared when the thread ends (nothing is then owed, and no stream
-/// waits for a thread that is gone).
+/// Where this session's replay ratio counts from: fixed when the replay first reaches its
+/// minimum while a training thread runs ([`Shared::fix_ratio_baseline`]), cleared when the
+/// thread ends (nothing is then owed, and no stream waits for a thread that is gone).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct RatioBaseline {
     /// Transitions stored before the count began (a resumed learner's rebuilt replay was trained
@@ -142,6 +142,9 @@ pub struct Shared {
     pub recent_episodes: Mutex<VecDeque<EpisodeOutcome>>,
     pub stats: Mutex<TrainStats>,
     pub metrics: MetricsLog,
+    /// The running training thread's start: transitions stored and updates done before it
+    /// (none while no thread runs). Locked before `ratio_baseline` wherever both are.
+    pub ratio_session: Mutex<Option<(u64, u64)>>,
     /// Where the replay ratio counts from, once training has started ([`Shared::updates_owed`]).
     pub ratio_baseline: Mutex<Option<RatioBaseline>>,
     /// Wakes the training thread when transitions arrive.
@@ -218,6 +221,22 @@ impl Shared {
     #[must_use]
     pub fn recent_refusal(&self) -> Option<String> {
         self.last_refusal.lock().expect("refusal lock").as_ref().filter(|(t, _)| t.elapsed() < RECENT_REFUSAL).map(|(_, r)| r.clone())
+    }
+
+    /// Fixes the replay ratio's baseline if it is not yet fixed, a training thread runs and the
+    /// replay (`len` transitions, `stored` stored in all) has reached its minimum. Both the
+    /// training thread and the streams that store batches call it, so that a burst that fills
+    /// the replay before the thread looks is held as well. Call it holding no other lock.
+    pub fn fix_ratio_baseline(&self, len: usize, stored: u64) {
+        if len < self.cfg.agent.min_replay {
+            return;
+        }
+        let session = self.ratio_session.lock().expect("ratio session lock");
+        let Some((stored_at_start, updates_at_start)) = *session else { return };
+        self.ratio_baseline
+            .lock()
+            .expect("ratio baseline lock")
+            .get_or_insert(RatioBaseline { stored_at_fill: stored.saturating_sub(len as u64).max(stored_at_start), updates_at_start });
     }
 
     /// Updates the replay ratio allows now and the training thread has not done: what the

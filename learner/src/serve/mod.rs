@@ -202,6 +202,9 @@ async fn start_with(opts: ServeOptions, train: Trainer) -> Result<Running> {
     let weights = PublishedWeights { version, bytes: Arc::new(agent::weights::to_safetensors(&dqn.online, "")?) };
     counters.weights_version = weights.version;
     let elapsed_before = counters.elapsed_secs;
+    // The replay ratio counts what arrives from now on, before the training thread is first
+    // scheduled: a burst that beats it there is held too.
+    let ratio_session = Some((counters.transitions_stored, dqn.updates));
     let shared = Arc::new(Shared {
         run_id: counters.run_id.clone(),
         cfg: cfg.clone(),
@@ -216,6 +219,7 @@ async fn start_with(opts: ServeOptions, train: Trainer) -> Result<Running> {
         recent_episodes: Mutex::new(VecDeque::new()),
         stats: Mutex::new(TrainStats::default()),
         metrics: MetricsLog::open(&run_dir).with_context(|| format!("opening metrics files in {}", run_dir.display()))?,
+        ratio_session: Mutex::new(ratio_session),
         ratio_baseline: Mutex::new(None),
         data_arrived: (Mutex::new(()), Condvar::new()),
         shutdown: Default::default(),
@@ -299,5 +303,52 @@ mod tests {
         assert!(refused.message().contains("has stopped training (the training thread panicked"), "{}", refused.message());
         let e = running.stop().await.unwrap_err().to_string();
         assert!(e.contains("injected"), "{e}");
+    }
+
+    /// A burst that fills the replay before the training thread first runs is held as well: the
+    /// replay ratio's count starts when the server does, not when the thread is scheduled (a
+    /// loaded CI machine once let a whole burst through, 197 updates owed against a limit of 4).
+    #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+    async fn a_burst_before_the_training_thread_runs_is_held() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut cfg = agent::config::RunConfig::tiny(&dir.path().join("run"));
+        (cfg.agent.replay_ratio, cfg.agent.batch_size, cfg.agent.replay_capacity, cfg.agent.min_replay) = (8.0, 32, 5000, 100);
+        cfg.service.update_lag_limit = 4;
+        let cfg_path = dir.path().join("run.toml");
+        std::fs::write(&cfg_path, cfg.to_toml()).unwrap();
+        // The thread sleeps through the burst, as a starved one would, then trains.
+        let late = |shared: &Arc<Shared>, dqn, run_dir: &std::path::Path| {
+            std::thread::sleep(Duration::from_millis(1500));
+            crate::training::train::run(shared, dqn, run_dir)
+        };
+        let running = start_with(ServeOptions { config: Some(cfg_path), ..ServeOptions::default() }, late).await.unwrap();
+        let mut c = proto::v1::learner_client::LearnerClient::connect(format!("http://{}", running.addr)).await.unwrap();
+        let reg = c.register(pb::RegisterRequest { name: "a".into(), envs: 1, protocol: 1 }).await.unwrap().into_inner();
+        // Eight episodes of 100 steps (99 transitions each), one per batch, on one stream.
+        let batches: Vec<_> = (0..8u64)
+            .map(|e| {
+                let steps = (0..100u32)
+                    .map(|t| pb::Step {
+                        episode: e,
+                        t,
+                        obs: Some(pb::Observation { image: vec![(t % 256) as u8; 256], d: 1.0, ..Default::default() }),
+                        action: t % 6,
+                        reward: 0.1,
+                        ..Default::default()
+                    })
+                    .collect();
+                pb::ExperienceBatch { actor_id: reg.actor_id.clone(), seq: e + 1, steps, weights_version: 1, ..Default::default() }
+            })
+            .collect();
+        let mut acks = c.stream_experience(tokio_stream::iter(batches)).await.unwrap().into_inner();
+        for _ in 0..8 {
+            acks.message().await.unwrap().expect("an ack per batch");
+        }
+        let st = c.status(pb::StatusRequest {}).await.unwrap().into_inner();
+        let owed = (st.transitions_stored * 8 / 32).saturating_sub(st.learner_step);
+        running.stop().await.unwrap();
+        assert_eq!(st.transitions_stored, 8 * 99);
+        // At most the limit, plus the 24.75 updates of the last batch stored, plus one of rounding.
+        assert!(owed <= 4 + 25 + 1 && st.held_secs > 0.0, "{owed} updates owed, streams held {} s", st.held_secs);
     }
 }

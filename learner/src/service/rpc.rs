@@ -404,7 +404,7 @@ fn store(shared: &Shared, b: pb::ExperienceBatch) -> Result<Stored, Status> {
         .collect();
     let payload = shared.log.as_ref().map(|_| replay_log::format::encode(&b.actor_id, b.episodes.len() as u32, &records));
     let env_steps = b.steps.iter().filter(|s| s.t > 0).count() as u64;
-    let (stored, position, learner_step, total_steps, first_episode) = {
+    let (stored, position, learner_step, total_steps, first_episode, replay_len, stored_in_all) = {
         let mut replay = shared.replay.lock().expect("replay lock");
         // The log's order is the replay's: append under the replay's lock.
         let position = match (&shared.log, &payload) {
@@ -424,8 +424,9 @@ fn store(shared: &Shared, b: pb::ExperienceBatch) -> Result<Stored, Status> {
         if let Some(p) = position {
             c.replay_log_position = p;
         }
-        (stored, position, c.learner_step, c.env_steps, first)
+        (stored, position, c.learner_step, c.env_steps, first, replay.len(), c.transitions_stored)
     };
+    shared.fix_ratio_baseline(replay_len, stored_in_all);
     shared.data_arrived.1.notify_one();
     Ok(Stored { batch: b, stored, position, learner_step, env_steps: total_steps, first_episode })
 }

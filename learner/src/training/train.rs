@@ -12,7 +12,7 @@ use std::time::{Duration, Instant};
 
 use agent::backoff::Backoff;
 
-use crate::state::{PublishedWeights, RatioBaseline, Shared};
+use crate::state::{PublishedWeights, Shared};
 use crate::storage::checkpoint;
 use crate::storage::replay::Sample;
 use crate::training::dqn::{Batch, Dqn};
@@ -110,7 +110,8 @@ pub fn run(shared: &Arc<Shared>, mut dqn: Dqn, run_dir: &std::path::Path) -> any
         c.learner_step = dqn.updates;
         c.transitions_stored
     };
-    let updates_at_start = dqn.updates;
+    // Where the server set none (a caller that starts this loop itself), the count starts here.
+    shared.ratio_session.lock().expect("ratio session lock").get_or_insert((stored_at_start, dqn.updates));
     let _clear = ClearBaselineOnExit(shared);
     let mut loss_ema: Option<f64> = None;
     let mut q_ema: Option<f64> = None;
@@ -125,12 +126,9 @@ pub fn run(shared: &Arc<Shared>, mut dqn: Dqn, run_dir: &std::path::Path) -> any
             wait_for_data(shared);
             continue;
         }
-        // Count from the moment the replay first reached its minimum in this session.
-        shared
-            .ratio_baseline
-            .lock()
-            .expect("ratio baseline lock")
-            .get_or_insert(RatioBaseline { stored_at_fill: stored.saturating_sub(len as u64).max(stored_at_start), updates_at_start });
+        // Count from the moment the replay first reached its minimum in this session (if a
+        // stream storing a batch has not fixed it already).
+        shared.fix_ratio_baseline(len, stored);
         if shared.updates_owed() == 0 {
             wait_for_data(shared);
             continue;
@@ -165,8 +163,13 @@ struct ClearBaselineOnExit<'a>(&'a Shared);
 
 impl Drop for ClearBaselineOnExit<'_> {
     fn drop(&mut self) {
-        if let Ok(mut b) = self.0.ratio_baseline.lock() {
-            *b = None;
+        // The session first, as `Shared::fix_ratio_baseline` locks them; no `expect`: this
+        // runs while a panic unwinds too.
+        if let Ok(mut session) = self.0.ratio_session.lock() {
+            *session = None;
+            if let Ok(mut b) = self.0.ratio_baseline.lock() {
+                *b = None;
+            }
         }
     }
 }
