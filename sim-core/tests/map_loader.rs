@@ -3,6 +3,9 @@
 
 use std::collections::BTreeSet;
 
+mod common;
+
+use common::fuzz_config;
 use proptest::prelude::*;
 use proptest::strategy::ValueTree;
 use proptest::test_runner::TestRunner;
@@ -361,17 +364,6 @@ fn load(text: &str) -> Loaded {
             assert_eq!(town.graph.lane_stations.len(), town.map.lanes.len());
             Loaded::Built(connectors)
         }
-    }
-}
-
-/// Fuzzing with a fixed seed, so that CI is the same run every time (a random draw once hung CI
-/// for hours on an input no one could replay); `PROPTEST_RNG_SEED=random` or a number explores.
-fn fuzz_config(cases: u32) -> ProptestConfig {
-    let config = ProptestConfig { cases, ..ProptestConfig::default() };
-    match std::env::var("PROPTEST_RNG_SEED") {
-        Ok(v) if v == "random" => ProptestConfig { rng_seed: proptest::test_runner::RngSeed::Random, ..config },
-        Ok(_) => config,
-        Err(_) => ProptestConfig { rng_seed: proptest::test_runner::RngSeed::Fixed(0x5eed_0d12), ..config },
     }
 }
 

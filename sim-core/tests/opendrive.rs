@@ -1,6 +1,8 @@
 //! The OpenDRIVE importer on real files (CARLA's Town01, esmini's roads): geometry against
 //! independent values, the lane graph, and bad input.
 
+mod common;
+
 use sim_core::map::{LaneKind, Map};
 
 fn data(name: &str) -> String {
@@ -247,20 +249,10 @@ mod mutations {
     use proptest::prelude::*;
 
     use super::{Map, data};
+    use crate::common::fuzz_config;
 
     /// Replacements that break a file in the ways real files break: bad numbers, cut elements.
     const SPLICES: [&str; 10] = ["NaN", "-1", "0", "1e308", "inf", "\"", "<", "/>", "", "-0.000001"];
-
-    /// Fuzzing with a fixed seed, so that CI is the same run every time (a random draw once hung CI
-    /// for hours on an input no one could replay); `PROPTEST_RNG_SEED=random` or a number explores.
-    fn fuzz_config(cases: u32) -> ProptestConfig {
-        let config = ProptestConfig { cases, ..ProptestConfig::default() };
-        match std::env::var("PROPTEST_RNG_SEED") {
-            Ok(v) if v == "random" => ProptestConfig { rng_seed: proptest::test_runner::RngSeed::Random, ..config },
-            Ok(_) => config,
-            Err(_) => ProptestConfig { rng_seed: proptest::test_runner::RngSeed::Fixed(0x5eed_0d12), ..config },
-        }
-    }
 
     proptest! {
         #![proptest_config(fuzz_config(96))]
