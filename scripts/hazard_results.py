@@ -6,8 +6,9 @@ experiments/results.json, figures).
   keep-run     copies what the tables need from a run directory into experiments/hazards/AGENT/seedS
                (the baselines' runs, the same in every evaluation, once into
                experiments/hazards/baselines/)
-  rename-run   renames a kept run's agent (the rate search's run that is hz-hybrid-tuned's seed 1)
-  best-rate    prints the searched rate whose run scored best in its last periodic evaluations
+  rename-run   renames a kept run's agent (the rate search's run that becomes an agent's seed 1)
+  best-rate    prints the searched rate whose run scored best in its last periodic evaluations, for
+               one agent (--agent; default hz-hybrid-tuned)
   report       the hazard sections of docs/RESULTS.md, experiments/results.json's "hazards",
                docs/figures/hazards-*.svg
 
@@ -32,6 +33,8 @@ CHECKPOINTS = ["last", "best"]
 # Periodic evaluations whose selection scores choose the rate: the last few, not the best one (a
 # maximum over noisy evaluations flatters the run that swings most).
 RATE_WINDOW = 3
+# How much a run's greedy policy swings: the spread of its last few periodic selection scores.
+SWING_WINDOW = 5
 BOOTSTRAP = main_results.BOOTSTRAP
 
 
@@ -98,17 +101,49 @@ def rate_score(d):
     return sum(e["selection_score"] for e in last) / len(last) if last else None
 
 
+def swing(d):
+    """Standard deviation of the run's last SWING_WINDOW periodic selection scores, or None."""
+    scores = [e["selection_score"] for e in main_results.read_jsonl(d / "eval.jsonl") if e.get("selection_score") is not None][-SWING_WINDOW:]
+    if len(scores) < 2:
+        return None
+    mean = sum(scores) / len(scores)
+    return (sum((x - mean) ** 2 for x in scores) / (len(scores) - 1)) ** 0.5
+
+
+def tuned_agent():
+    return main_results.agents_of("hazards")[0]
+
+
+def search_name(agent, rate):
+    """The rate search's run of AGENT at RATE: `rate-R` for the tuned agent (the first search,
+    which kept that name), `rate-R-AGENT` for the others."""
+    return f"rate-{rate}" if agent == tuned_agent() else f"rate-{rate}-{agent}"
+
+
+def search_dir(results, agent, rate):
+    """The run that is AGENT's search point at RATE: its search run, or else the agent's own seed 1
+    where that was trained at RATE (the same configuration and seed: the run the search would do)."""
+    d = Path(results) / search_name(agent, rate) / "seed1"
+    if (d / "run.json").exists():
+        return d
+    own = Path(results) / agent / "seed1"
+    if (own / "run.json").exists() and float(json.loads((own / "run.json").read_text()).get("hazard_rate", "nan")) == float(rate):
+        return own
+    return d
+
+
 def best_rate(a):
+    agent = getattr(a, "agent", None) or tuned_agent()
     scores = {}
     for rate in a.rates.split(","):
-        d = Path(a.results) / f"rate-{rate}" / "seed1"
+        d = search_dir(a.results, agent, rate)
         if not (d / "run.json").exists():
-            raise SystemExit(f"{d}: the rate search's run at {rate} has not finished")
+            raise SystemExit(f"{d}: the rate search's run of {agent} at {rate} has not finished")
         scores[rate] = rate_score(d)
         if scores[rate] is None:
             raise SystemExit(f"{d / 'eval.jsonl'}: no periodic evaluation with a selection score")
     best = max(scores, key=lambda r: scores[r])
-    print(", ".join(f"rate {r}: {s:.3f}" for r, s in scores.items()) + f"; best {best}", file=sys.stderr)
+    print(f"{agent}: " + ", ".join(f"rate {r}: {s:.3f}" for r, s in scores.items()) + f"; best {best}", file=sys.stderr)
     print(best)
 
 
@@ -226,8 +261,11 @@ def report(a):
     data = {"bootstrap": {"replicates": BOOTSTRAP, "over": "seeds, then runs within each seed and scenario (a baseline: runs only)"},
             "rates": {}, "rows": {}, "differences": {}, "behaviour": {}, "runs": {}}
     for name, by_seed in runs.items():
-        if name.startswith("rate-"):
-            data["rates"][name[len("rate-"):]] = rate_score(by_seed[1]["dir"]) if 1 in by_seed else None
+        rate = name[len("rate-"):]
+        if name.startswith("rate-") and "-" not in rate:
+            data["rates"][rate] = rate_score(by_seed[1]["dir"]) if 1 in by_seed else None
+    data["rate_search"] = rate_search(results, runs)
+    data["steadiness"] = steadiness(runs)
     draws = {}
     for i, (label, seeds, reports) in enumerate(rows(runs, baselines)):
         entry = {"seeds": seeds, "suites": {}}
@@ -276,6 +314,48 @@ def report(a):
         (out_dir / "figures" / "hazards-kinds.svg").write_text(svg)
     main_results.write_results_md(out_dir / "RESULTS.md", sections)
     print(f"wrote {json_out} (\"hazards\") and the hazard sections of {out_dir / 'RESULTS.md'}", file=sys.stderr)
+
+
+def rate_search(results, runs):
+    """{agent: {rate: {"selection_score", "swing", "run"}}}: every hazard agent's search points
+    that are here (seed 1 at each rate: its search runs and its own seed 1)."""
+    rates = sorted({str(r["hazard_rate"]) for by_seed in runs.values() for r in by_seed.values()}, key=float)
+    out = {}
+    for agent in main_results.agents_of("hazards"):
+        points = {}
+        for rate in rates:
+            d = search_dir(results, agent, rate)
+            if (d / "run.json").exists():
+                points[rate] = {"selection_score": rate_score(d), "swing": swing(d), "run": d.parent.name}
+        if points:
+            out[agent] = points
+    return out
+
+
+def final_scores(run):
+    """{checkpoint: {"suite/town": driving score}} of one run's final evaluations, computed as the
+    tables compute it (every kind or route weighs the same)."""
+    out = {}
+    for (suite, town), by_ck in run["evals"].items():
+        for ck, rep in by_ck.items():
+            if ck in CHECKPOINTS:
+                out.setdefault(ck, {})[f"{suite}/{town}"] = metrics(seed_samples([rep]))["driving_score"]
+    return out
+
+
+def steadiness(runs):
+    """The search for a steadier policy: seed 1 of the tuned agent and of each candidate of group
+    `steady`, with the same budget and rate: the level (mean of the last RATE_WINDOW periodic
+    selection scores), the swing (standard deviation of the last SWING_WINDOW) and the final
+    evaluations' driving scores of last and best/."""
+    out = {}
+    for name in [tuned_agent()] + main_results.agents_of("steady"):
+        r = runs.get(name, {}).get(1)
+        if r is None:
+            continue
+        out[name] = {"selection_score": rate_score(r["dir"]), "swing": swing(r["dir"]), "hazard_rate": r.get("hazard_rate"),
+                     "env_steps": r.get("env_steps"), "learner_step": r.get("learner_step"), "final": final_scores(r)}
+    return out
 
 
 def ci(m, pct=False, digits=2):
@@ -338,7 +418,32 @@ def tables(data):
                          f"{best.get('env_steps') or 0:,} | {r['train_minutes']} | {sum(sel) / len(sel) if sel else float('nan'):.3f} | "
                          f"{r['cpu']}, {r['load_before']} → {r['load_after']} | {r['commit']} |")
     s["hazards-runs"] = "\n".join(lines)
+    s["hazards-search"] = search_tables(data)
     return s
+
+
+def search_tables(data):
+    f3 = lambda x: "–" if x is None else f"{x:.3f}"  # noqa: E731
+    lines = ["**The hazard rate, per agent** (seed 1 at each rate; level: mean selection score of the last "
+             f"{RATE_WINDOW} periodic evaluations; swing: standard deviation of the last {SWING_WINDOW})", "",
+             "| agent | rate | run | level | swing |", "|---|---:|---|---:|---:|"]
+    for agent, points in data.get("rate_search", {}).items():
+        best = max((r for r in points if points[r]["selection_score"] is not None), key=lambda r: points[r]["selection_score"], default=None)
+        for rate, p in points.items():
+            mark = " (best)" if rate == best and len(points) > 1 else ""
+            lines.append(f"| {agent} | {rate}{mark} | {p['run']} | {f3(p['selection_score'])} | {f3(p['swing'])} |")
+    lines += ["", "**A steadier policy** (seed 1, the same budget and hazard rate; final evaluations: driving score of "
+              "last / best/, 5 runs per scenario)", "",
+              "| agent | env steps | updates | level | swing | " + " | ".join(f"{suite}, {town}" for suite in SUITES for town in TOWNS) + " |",
+              "|---|---:|---:|---:|---:|" + "---:|" * (len(SUITES) * len(TOWNS))]
+    for name, st in data.get("steadiness", {}).items():
+        cells = []
+        for suite in SUITES:
+            for town in TOWNS:
+                key = f"{suite}/{town}"
+                cells.append(" / ".join(f"{st['final'][ck][key]:.2f}" if key in st["final"].get(ck, {}) else "–" for ck in CHECKPOINTS))
+        lines.append(f"| {name} | {st['env_steps'] or 0:,} | {st['learner_step'] or 0:,} | {f3(st['selection_score'])} | {f3(st['swing'])} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
 
 
 def kinds_figure(data, town="default_town"):
@@ -390,6 +495,7 @@ def main():
     b = sub.add_parser("best-rate")
     b.add_argument("--results", required=True)
     b.add_argument("--rates", required=True)
+    b.add_argument("--agent", default=None, help="the agent whose search (default: the first of group hazards, hz-hybrid-tuned)")
     r = sub.add_parser("report")
     r.add_argument("--results", required=True)
     r.add_argument("--out-dir", required=True, help="where RESULTS.md and figures/ are")

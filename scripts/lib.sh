@@ -14,16 +14,19 @@ require_positive() {
     done
 }
 
-# require_known SCRIPT ONLY EXTRA AGENT_ROW...: exits with status 2 and a message listing the valid
-# names unless every comma-separated name in ONLY (an --agents value) is the name of one of the
-# AGENT_ROWs (NAME|...) or one of the space-separated EXTRA names.
+# require_known SCRIPT [--flag FLAG] ONLY EXTRA AGENT_ROW...: exits with status 2 and a message
+# listing the valid names unless every comma-separated name in ONLY (the value of FLAG, by default
+# --agents) is the name of one of the AGENT_ROWs (NAME|...) or one of the space-separated EXTRA names.
 require_known() {
-    local script="$1" only="$2" known=" $3 " v name
-    shift 3
+    local script="$1" flag="--agents"
+    shift
+    if [[ "$1" == --flag ]]; then flag="$2"; shift 2; fi
+    local only="$1" known=" $2 " v name
+    shift 2
     for v in "$@"; do known+="${v%%|*} "; done
     for name in ${only//,/ }; do
         if [[ "$known" != *" $name "* ]]; then
-            echo "$script: --agents: unknown agent \`$name\`; expected some of:$known" >&2
+            echo "$script: $flag: unknown agent \`$name\`; expected some of:$known" >&2
             exit 2
         fi
     done

@@ -6,9 +6,14 @@
 #   1. the hazard rate: hz-hybrid-tuned, seed 1, trained at each of --rates (`[env.hazards] rate`,
 #      the share of training episodes with a hazard); the rate whose run scored best in its last
 #      periodic evaluations (mean of the clean and hazard driving scores, validation seeds
-#      10000..) is used for every agent (a search per agent is not run: see docs/RESULTS.md)
+#      10000..) is hz-hybrid-tuned's, and every agent's not in --rate-search; each agent of
+#      --rate-search gets a search of its own (seed 1 at each rate, runs rate-R-AGENT; an agent's
+#      own seed 1, where it was trained at R, is its point at R) and trains at its best rate
 #   2. the agents of group `hazards` of experiments/agents.txt × --seeds, seed by seed, each to
 #      --env-steps; `hz-e2e-best` is the end-to-end search's winner of scripts/reproduce.sh
+#   2b. the search for a steadier policy (group `steady`): each candidate, seed 1, trained like
+#      hz-hybrid-tuned with one change, same budget and rate; compared by the level and the swing of
+#      its periodic evaluations and by its final evaluations
 #   3. the longer-budget row (group `long`): hz-hybrid-tuned's run of each seed trained on from its
 #      400k-step checkpoint to --long-env-steps (a copy of its run directory; resumed, so the
 #      curve is that run's own; where that directory is gone, from scratch with the same
@@ -26,7 +31,8 @@
 # same command to continue.
 #
 # Usage: scripts/reproduce-hazards.sh [--seeds N] [--env-steps N] [--long-env-steps N] [--rates R,R]
-#            [--agents A,B] [--runs N] [--eval-every M] [--report-only] [--runs-dir DIR] [--no-build]
+#            [--rate-search A,B] [--agents A,B] [--runs N] [--eval-every M] [--report-only]
+#            [--runs-dir DIR] [--no-build]
 set -euo pipefail
 {
 
@@ -35,6 +41,7 @@ source "$(dirname "$0")/lib.sh"
 agents_of hazards agents
 agents_of long long
 agents_of search search
+agents_of steady steady
 
 usage() {
     cat <<'EOF'
@@ -43,9 +50,12 @@ scripts/reproduce-hazards.sh — the hazard experiment of docs/RESULTS.md.
   --seeds N            seeds per agent, 1..N (default 3)
   --env-steps N        training budget per run, environment steps (default 400000)
   --long-env-steps N   the longer-budget row's budget (default 1600000, 4x); 0 skips the row
-  --rates R,R          hazard rates searched with hz-hybrid-tuned seed 1 (default 0.25,0.5,1.0)
-  --agents A,B         train only these (names below, `rates` for the rate search, `long` for the
-                       longer row); the report still covers every finished run
+  --rates R,R          hazard rates searched, seed 1 at each (default 0.25,0.5,1.0)
+  --rate-search A,B    the agents searched for a rate of their own (default hz-hybrid-tuned,
+                       hz-hybrid-avoid,hz-hybrid-paper-inputs); the others train at hz-hybrid-tuned's
+  --agents A,B         train only these (names below, `rates` for the rate searches, `long` for the
+                       longer row, `steady` for the steadiness search); the report still covers
+                       every finished run
   --runs N             evaluation runs per scenario, suite and town (default 5)
   --eval-every M       minutes between periodic evaluations during training (default 1)
   --report-only        train nothing: rebuild the tables from experiments/hazards
@@ -61,6 +71,12 @@ EOF
         printf '  %-24s %s\n' "$name" "$what"
     done
     echo
+    echo "The search for a steadier policy (seed 1 each, hz-hybrid-tuned's rate):"
+    for v in "${steady[@]}"; do
+        IFS='|' read -r name _ _ what <<<"$v"
+        printf '  %-24s %s\n' "$name" "$what"
+    done
+    echo
     echo "Rerunning the same command resumes; finished runs (experiments/hazards/AGENT/seedS/run.json) are skipped."
 }
 
@@ -68,6 +84,7 @@ seeds=3
 env_steps=400000
 long_env_steps=1600000
 rates="0.25,0.5,1.0"
+rate_search="hz-hybrid-tuned,hz-hybrid-avoid,hz-hybrid-paper-inputs"
 only=""
 runs=5
 eval_every=1
@@ -81,6 +98,7 @@ while [[ $# -gt 0 ]]; do
         --env-steps) env_steps="${2:?--env-steps needs a number}"; shift 2 ;;
         --long-env-steps) long_env_steps="${2:?--long-env-steps needs a number}"; shift 2 ;;
         --rates) rates="${2:?--rates needs rates}"; shift 2 ;;
+        --rate-search) rate_search="${2:?--rate-search needs agent names}"; shift 2 ;;
         --agents) only="${2:?--agents needs names}"; shift 2 ;;
         --runs) runs="${2:?--runs needs a number}"; shift 2 ;;
         --eval-every) eval_every="${2:?--eval-every needs minutes}"; shift 2 ;;
@@ -108,7 +126,8 @@ for r in ${rates//,/ }; do
         exit 2
     fi
 done
-require_known reproduce-hazards.sh "$only" "rates long" "${agents[@]}" "${long[@]}"
+require_known reproduce-hazards.sh "$only" "rates long steady" "${agents[@]}" "${long[@]}" "${steady[@]}"
+require_known reproduce-hazards.sh --flag --rate-search "$rate_search" "" "${agents[@]}"
 
 cd "$(dirname "$0")/.."
 resume_on_interrupt reproduce-hazards.sh
@@ -189,39 +208,95 @@ train_and_evaluate() {
 }
 
 if [[ "$report_only" == 0 ]]; then
-    # 1. The rate search.
-    IFS='|' read -r tuned tuned_preset tuned_extra _ <<<"${agents[0]}"
-    if wanted rates || wanted "$tuned"; then
-        for rate in ${rates//,/ }; do
-            train_and_evaluate "rate-$rate" "$tuned_preset" "$tuned_extra" "$rate" 1 "$env_steps"
-        done
-    fi
-    rate=$(python3 scripts/hazard_results.py best-rate --results "$results" --rates "$rates") || {
-        echo "reproduce-hazards.sh: the rate search has not finished (run --agents rates first)" >&2
-        exit 1
-    }
-    echo "== the hazard rate: $rate (the search's best)" >&2
-    # Its seed-1 run is hz-hybrid-tuned's seed 1: the same configuration, trained once.
-    if [[ ! -e "$results/$tuned/seed1" ]]; then
-        mkdir -p "$results/$tuned" "$runs_dir/$tuned"
-        cp -r "$results/rate-$rate/seed1" "$results/$tuned/seed1"
-        sed -i "s/^# rate-$rate:/# $tuned:/" "$results/$tuned/seed1/config.toml"
-        python3 scripts/hazard_results.py rename-run --out "$results/$tuned/seed1" --name "$tuned"
-        [[ -e "$runs_dir/$tuned/seed1" ]] || ln -s "../rate-$rate/seed1" "$runs_dir/$tuned/seed1"
-    fi
     e2e=$(python3 scripts/results.py best-end-to-end --results experiments/results) || {
         echo "reproduce-hazards.sh: scripts/reproduce.sh's end-to-end search has not finished" >&2
         exit 1
     }
     e2e_row=""
     for v in "${search[@]}"; do [[ "${v%%|*}" == "$e2e" ]] && e2e_row="$v"; done
+    # agent_row NAME: NAME's row (NAME|PRESET|TOML|WHAT); hz-e2e-best takes the search winner's.
+    agent_row() {
+        local v
+        for v in "${agents[@]}" "${steady[@]}"; do
+            [[ "${v%%|*}" == "$1" ]] || continue
+            if [[ "$1" == hz-e2e-best ]]; then
+                IFS='|' read -r _ p x _ <<<"$e2e_row"
+                echo "$1|$p|$x|"
+            else
+                echo "$v"
+            fi
+        done
+    }
+    searched() { [[ ",$rate_search," == *",$1,"* ]]; }
+    # search_name NAME RATE: the rate search's run of NAME at RATE (hz-hybrid-tuned's, the first
+    # search, kept the name rate-R).
+    IFS='|' read -r tuned tuned_preset tuned_extra _ <<<"${agents[0]}"
+    search_name() { if [[ "$1" == "$tuned" ]]; then echo "rate-$2"; else echo "rate-$2-$1"; fi; }
+    kept_rate() { python3 -c 'import json,sys; print(json.load(open(sys.argv[1]))["hazard_rate"])' "$results/$1/seed1/run.json"; }
+    # 1. The rate searches: hz-hybrid-tuned's first (its best is every unsearched agent's rate),
+    # then each other agent of --rate-search; an agent's own seed 1 trained at a rate is its
+    # point there. The best run becomes the agent's seed 1.
+    declare -A agent_rate=()
+    for v in "${agents[@]}"; do
+        name="${v%%|*}"
+        [[ "$name" == "$tuned" ]] || searched "$name" || continue
+        if wanted rates || wanted "$name"; then
+            IFS='|' read -r _ preset extra _ <<<"$(agent_row "$name")"
+            for r in ${rates//,/ }; do
+                if [[ "$name" != "$tuned" && -f "$results/$name/seed1/run.json" ]] \
+                    && python3 -c 'import sys; sys.exit(float(sys.argv[1]) != float(sys.argv[2]))' "$(kept_rate "$name")" "$r"; then
+                    echo "== $name at rate $r: its own seed 1 ($results/$name/seed1)" >&2
+                    continue
+                fi
+                train_and_evaluate "$(search_name "$name" "$r")" "$preset" "$extra" "$r" 1 "$env_steps"
+            done
+        fi
+        best=$(python3 scripts/hazard_results.py best-rate --results "$results" --rates "$rates" --agent "$name") || {
+            if [[ "$name" == "$tuned" ]]; then
+                echo "reproduce-hazards.sh: the rate search has not finished (run --agents rates first)" >&2
+                exit 1
+            fi
+            echo "== $name: its rate search has not finished (--agents rates runs it); it trains at $tuned's rate" >&2
+            continue
+        }
+        agent_rate[$name]="$best"
+        if [[ ! -e "$results/$name/seed1" ]]; then
+            from=$(search_name "$name" "$best")
+            mkdir -p "$results/$name" "$runs_dir/$name"
+            cp -r "$results/$from/seed1" "$results/$name/seed1"
+            sed -i "s/^# $from:/# $name:/" "$results/$name/seed1/config.toml"
+            python3 scripts/hazard_results.py rename-run --out "$results/$name/seed1" --name "$name"
+            [[ -e "$runs_dir/$name/seed1" ]] || ln -s "../$from/seed1" "$runs_dir/$name/seed1"
+        fi
+    done
+    rate="${agent_rate[$tuned]}"
+    echo "== the hazard rate: $rate (hz-hybrid-tuned's search; every agent not in --rate-search trains at it)" >&2
+    # rate_of NAME: the rate NAME's seeds train at: its search's best, or hz-hybrid-tuned's; where
+    # its kept seeds were trained at another (a search finished after them), theirs, said aloud,
+    # so that one row never mixes rates.
+    rate_of() {
+        local want="${agent_rate[$1]:-$rate}" kept
+        if [[ -f "$results/$1/seed1/run.json" ]]; then
+            kept=$(kept_rate "$1")
+            if python3 -c 'import sys; sys.exit(float(sys.argv[1]) == float(sys.argv[2]))' "$kept" "$want"; then
+                echo "== $1: its kept seeds were trained at rate $kept and its search now picks $want; they stay (move $results/$1 aside to retrain at $want)" >&2
+                want="$kept"
+            fi
+        fi
+        echo "$want"
+    }
     # 2. The agents, seed by seed, so that an experiment stopped early has every agent.
     for seed in $(seq 1 "$seeds"); do
         for v in "${agents[@]}"; do
-            IFS='|' read -r name preset extra _ <<<"$v"
-            if [[ "$name" == hz-e2e-best ]]; then IFS='|' read -r _ preset extra _ <<<"$e2e_row"; fi
-            if wanted "$name"; then train_and_evaluate "$name" "$preset" "$extra" "$rate" "$seed" "$env_steps"; fi
+            IFS='|' read -r name preset extra _ <<<"$(agent_row "${v%%|*}")"
+            if wanted "$name"; then train_and_evaluate "$name" "$preset" "$extra" "$(rate_of "$name")" "$seed" "$env_steps"; fi
         done
+    done
+    # 2b. The search for a steadier policy: seed 1 of each candidate, hz-hybrid-tuned's rate and
+    # budget; its baseline is hz-hybrid-tuned's seed 1.
+    for v in "${steady[@]}"; do
+        IFS='|' read -r name preset extra _ <<<"$v"
+        if wanted steady || wanted "$name"; then train_and_evaluate "$name" "$preset" "$extra" "$(rate_of "$tuned")" 1 "$env_steps"; fi
     done
     # 3. The longer-budget row: each seed's hz-hybrid-tuned run trained on.
     IFS='|' read -r long_name _ _ _ <<<"${long[0]}"

@@ -63,6 +63,30 @@ def test_the_rate_is_chosen_by_the_last_periodic_evaluations_not_the_best_one(tm
         hz.best_rate(type("A", (), {"results": str(tmp_path), "rates": "0.5,1.0"}))
 
 
+def test_an_agents_own_search_counts_its_seed_1_where_it_was_trained_at_that_rate(tmp_path, capsys):
+    def write(d, rate, scores):
+        d.mkdir(parents=True)
+        (d / "run.json").write_text(json.dumps({"agent": d.parent.name, "seed": 1, "hazard_rate": rate}))
+        (d / "eval.jsonl").write_text("".join(json.dumps({"selection_score": s}) + "\n" for s in scores))
+
+    write(tmp_path / "hz-hybrid-avoid" / "seed1", "0.5", [0.4, 0.4, 0.4])  # the agent's own run, at 0.5
+    write(tmp_path / "rate-0.25-hz-hybrid-avoid" / "seed1", "0.25", [0.6, 0.5, 0.7])
+    write(tmp_path / "rate-0.5" / "seed1", "0.5", [0.9, 0.9, 0.9])  # hz-hybrid-tuned's search: not this agent's
+    assert hz.search_name("hz-hybrid-tuned", "0.5") == "rate-0.5"
+    assert hz.search_dir(tmp_path, "hz-hybrid-avoid", "0.5") == tmp_path / "hz-hybrid-avoid" / "seed1"
+    hz.best_rate(type("A", (), {"results": str(tmp_path), "rates": "0.25,0.5", "agent": "hz-hybrid-avoid"}))
+    assert capsys.readouterr().out.strip() == "0.25"
+    with pytest.raises(SystemExit, match="rate-1.0-hz-hybrid-avoid"):
+        hz.best_rate(type("A", (), {"results": str(tmp_path), "rates": "0.5,1.0", "agent": "hz-hybrid-avoid"}))
+    assert hz.swing(tmp_path / "rate-0.25-hz-hybrid-avoid" / "seed1") == pytest.approx(0.1)
+    assert hz.swing(tmp_path / "rate-0.5" / "seed1") == 0.0
+    runs = hz.load_runs(tmp_path)
+    points = hz.rate_search(tmp_path, runs)["hz-hybrid-avoid"]
+    assert {r: p["run"] for r, p in points.items()} == {"0.25": "rate-0.25-hz-hybrid-avoid", "0.5": "hz-hybrid-avoid"}
+    table = hz.search_tables({"rate_search": {"hz-hybrid-avoid": points}, "steadiness": {}})
+    assert "| hz-hybrid-avoid | 0.25 (best) | rate-0.25-hz-hybrid-avoid | 0.600 | 0.100 |" in table
+
+
 def test_behaviour_counts_returns_among_the_runs_that_passed():
     seed = {"stalled_car": [run(1.0, lateral=3.0), run(0.2, lateral=1.0, passed=False, back=False)],
             "pedestrian_crossing": [run(1.0, speed=2.0), run(0.5, infractions=["pedestrian_collision"], speed=8.0), run(0.3, speed=None)]}
