@@ -71,6 +71,10 @@ pub struct AgentConfig {
     pub replay_ratio: f32,
     /// Updates between target-network copies (default 1 000).
     pub target_update_period: u64,
+    /// Target-network averaging (Polyak): after every update the target moves τ of the way to the
+    /// online network, θ' ← θ' + τ(θ − θ') (default 0: no averaging, the target is copied every
+    /// `target_update_period` updates, which then goes unused with τ > 0).
+    pub target_tau: f32,
     /// Gradients are rescaled to at most this global L2 norm (default 10).
     pub grad_clip_norm: f32,
     /// Huber loss threshold δ (default 1).
@@ -128,6 +132,7 @@ impl Default for AgentConfig {
             min_replay: 1_000,
             replay_ratio: 0.25,
             target_update_period: 1_000,
+            target_tau: 0.0,
             grad_clip_norm: 10.0,
             huber_delta: 1.0,
             double_dqn: false,
@@ -321,6 +326,9 @@ impl RunConfig {
         if a.target_update_period == 0 {
             return bad("target_update_period", "must be at least 1".into());
         }
+        if !(a.target_tau.is_finite() && (0.0..=1.0).contains(&a.target_tau)) {
+            return bad("target_tau", format!("{} must be in [0, 1] (0: copy every target_update_period updates)", a.target_tau));
+        }
         if !(a.grad_clip_norm.is_finite() && a.grad_clip_norm > 0.0) {
             return bad("grad_clip_norm", format!("{} must be > 0", a.grad_clip_norm));
         }
@@ -480,6 +488,11 @@ mod tests {
         assert!(e.to_string().contains("field `env.reward.d0`"), "{e}");
         let e = RunConfig::from_toml("[agent]\npath_features = true\n[env]\nvariant = \"end_to_end\"\n", "run.toml").unwrap_err();
         assert!(e.to_string().contains("field `agent.path_features`: needs env.variant = \"hybrid\""), "{e}");
+        let e = RunConfig::from_toml("[agent]\ntarget_tau = 1.5\n", "run.toml").unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "config file run.toml: field `agent.target_tau`: 1.5 must be in [0, 1] (0: copy every target_update_period updates)"
+        );
         let e = RunConfig::from_toml("[agent]\nbatch = 3\n", "run.toml").unwrap_err();
         assert!(e.to_string().contains("unknown field `batch`"), "{e}");
     }

@@ -94,6 +94,7 @@ pub const FIELD_DOCS: &[(&str, &str)] = &[
     ("agent.min_replay", "Transitions stored before training starts (default 1 000)."),
     ("agent.replay_ratio", "Samples trained per transition inserted (default 0.25: one batch of 32 per 128 steps)."),
     ("agent.target_update_period", "Updates between target-network copies (default 1 000)."),
+    ("agent.target_tau", "Target-network averaging (Polyak): after every update the target moves τ of the way to the online network, θ' ← θ' + τ(θ − θ') (default 0: no averaging, the target is copied every `target_update_period` updates, which then goes unused with τ > 0)."),
     ("agent.grad_clip_norm", "Gradients are rescaled to at most this global L2 norm (default 10)."),
     ("agent.huber_delta", "Huber loss threshold δ (default 1)."),
     ("agent.double_dqn", "Extension switch: double DQN targets, the online network choosing the next action and the target network valuing it (van Hasselt 2016) (default false: the paper's plain DQN)."),

@@ -65,6 +65,9 @@ pub struct Dqn {
     /// Updates done.
     pub updates: u64,
     pub target_update_period: u64,
+    /// Polyak averaging of the target after every update; 0 copies it every
+    /// `target_update_period` updates instead.
+    pub target_tau: f32,
 }
 
 impl Dqn {
@@ -96,6 +99,7 @@ impl Dqn {
             double_dqn: cfg.double_dqn,
             updates: 0,
             target_update_period: cfg.target_update_period,
+            target_tau: cfg.target_tau,
         }
     }
 
@@ -117,8 +121,8 @@ impl Dqn {
         (0..b.len()).map(|i| b.rewards[i] + b.discounts[i] * q_next[i * a + chosen[i]]).collect()
     }
 
-    /// One gradient step on `batch`; copies the online network into the target every
-    /// `target_update_period` updates.
+    /// One gradient step on `batch`; then moves the target `target_tau` of the way to the online
+    /// network, or (τ = 0) copies the online network into it every `target_update_period` updates.
     pub fn update(&mut self, b: &Batch) -> UpdateStats {
         let (n, a) = (b.len(), self.shape.actions);
         let y = self.targets(b);
@@ -138,7 +142,9 @@ impl Dqn {
         self.net.backward(&self.online, &dq, &mut self.grads);
         let grad_norm = self.adam.step(&mut self.online, &self.grads, self.grad_clip_norm, self.net.threads());
         self.updates += 1;
-        if self.updates.is_multiple_of(self.target_update_period) {
+        if self.target_tau > 0.0 {
+            self.average_target();
+        } else if self.updates.is_multiple_of(self.target_update_period) {
             self.sync_target();
         }
         UpdateStats { loss: (loss / n as f64) as f32, mean_q: (q_sum / n as f64) as f32, td_abs, grad_norm }
@@ -147,6 +153,16 @@ impl Dqn {
     /// Copies the online parameters into the target network.
     pub fn sync_target(&mut self) {
         self.target.clone_from(&self.online);
+    }
+
+    /// θ' ← θ' + τ(θ − θ'), element by element in one order: deterministic.
+    fn average_target(&mut self) {
+        let tau = self.target_tau;
+        for (t, o) in self.target.values.iter_mut().zip(&self.online.values) {
+            for (x, &y) in t.iter_mut().zip(o) {
+                *x += tau * (y - *x);
+            }
+        }
     }
 }
 
@@ -215,6 +231,27 @@ mod tests {
         assert!(last < first, "loss should fall on a fixed batch: {first} -> {last}");
         assert_eq!(dqn.updates, 5);
         assert_eq!(dqn.target, dqn.online, "synced at update 5");
+    }
+
+    #[test]
+    fn with_tau_the_target_moves_tau_of_the_way_to_the_online_network_after_every_update() {
+        let cfg = AgentConfig { learning_rate: 1e-2, target_update_period: 1, target_tau: 0.25, ..AgentConfig::default() };
+        let mut dqn = Dqn::new(shape(), &cfg);
+        let b = batch(&[1.0, 1.0, 1.0, 1.0], &[0.0; 4]);
+        for _ in 0..3 {
+            let before = dqn.target.clone();
+            dqn.update(&b);
+            assert_ne!(dqn.target, dqn.online, "averaged, not copied (the period of 1 goes unused)");
+            for ((t, t0), o) in dqn.target.values.iter().zip(&before.values).zip(&dqn.online.values) {
+                for ((&x, &x0), &y) in t.iter().zip(t0).zip(o) {
+                    assert_eq!(x, x0 + 0.25 * (y - x0));
+                }
+            }
+        }
+        let full = AgentConfig { target_tau: 1.0, ..cfg };
+        let mut dqn = Dqn::new(shape(), &full);
+        dqn.update(&b);
+        assert_eq!(dqn.target, dqn.online, "τ = 1 is a copy after every update");
     }
 
     #[test]
