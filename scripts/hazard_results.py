@@ -240,7 +240,9 @@ def rows(runs, baselines):
     out = []
     for b in BASELINES:
         out.append((b, None, {k: [v[b]] for k, v in baselines.items() if b in v}))
-    for name in main_results.agents_of("hazards") + main_results.agents_of("long"):
+    # The steadiness search's candidates join the tables once they have more than one seed.
+    steady = [n for n in main_results.agents_of("steady") if len(runs.get(n, {})) > 1]
+    for name in main_results.agents_of("hazards") + main_results.agents_of("long") + steady:
         by_seed = runs.get(name, {})
         if not by_seed:
             continue
@@ -288,6 +290,8 @@ def report(a):
                   (f"hz-hybrid-avoid ({ck})", "model-based-avoid"), (f"hz-hybrid-avoid ({ck})", f"hz-hybrid-tuned ({ck})"),
                   (f"hz-hybrid-tuned-long ({ck})", f"hz-hybrid-tuned ({ck})")]
     pairs.append(("hz-hybrid-tuned-long (best)", "hz-hybrid-tuned (last)"))
+    for name in main_results.agents_of("steady"):
+        pairs += [(f"{name} ({ck})", f"hz-hybrid-tuned ({ck})") for ck in CHECKPOINTS]
     for x, y in pairs:
         for suite in SUITES:
             for town in TOWNS:

@@ -11,9 +11,10 @@
 #      own seed 1, where it was trained at R, is its point at R) and trains at its best rate
 #   2. the agents of group `hazards` of experiments/agents.txt × --seeds, seed by seed, each to
 #      --env-steps; `hz-e2e-best` is the end-to-end search's winner of scripts/reproduce.sh
-#   2b. the search for a steadier policy (group `steady`): each candidate, seed 1, trained like
-#      hz-hybrid-tuned with one change, same budget and rate; compared by the level and the swing of
-#      its periodic evaluations and by its final evaluations
+#   2b. the search for a steadier policy (group `steady`): each candidate, seeds 1..--steady-seeds
+#      (default 1), trained like hz-hybrid-tuned with one change, same budget and rate; compared by
+#      the level and the swing of its periodic evaluations and by its final evaluations (a
+#      candidate with two or more seeds also gets rows in the tables)
 #   3. the longer-budget row (group `long`): hz-hybrid-tuned's run of each seed trained on from its
 #      400k-step checkpoint to --long-env-steps (a copy of its run directory; resumed, so the
 #      curve is that run's own; where that directory is gone, from scratch with the same
@@ -31,7 +32,7 @@
 # same command to continue.
 #
 # Usage: scripts/reproduce-hazards.sh [--seeds N] [--env-steps N] [--long-env-steps N] [--rates R,R]
-#            [--rate-search A,B] [--agents A,B] [--runs N] [--eval-every M] [--report-only]
+#            [--rate-search A,B] [--steady-seeds N] [--agents A,B] [--runs N] [--eval-every M] [--report-only]
 #            [--runs-dir DIR] [--no-build]
 set -euo pipefail
 {
@@ -53,6 +54,7 @@ scripts/reproduce-hazards.sh — the hazard experiment of docs/RESULTS.md.
   --rates R,R          hazard rates searched, seed 1 at each (default 0.25,0.5,1.0)
   --rate-search A,B    the agents searched for a rate of their own (default hz-hybrid-tuned,
                        hz-hybrid-avoid,hz-hybrid-paper-inputs); the others train at hz-hybrid-tuned's
+  --steady-seeds N     seeds per candidate of the steadiness search, 1..N (default 1)
   --agents A,B         train only these (names below, `rates` for the rate searches, `long` for the
                        longer row, `steady` for the steadiness search); the report still covers
                        every finished run
@@ -71,7 +73,7 @@ EOF
         printf '  %-24s %s\n' "$name" "$what"
     done
     echo
-    echo "The search for a steadier policy (seed 1 each, hz-hybrid-tuned's rate):"
+    echo "The search for a steadier policy (--steady-seeds seeds each, hz-hybrid-tuned's rate):"
     for v in "${steady[@]}"; do
         IFS='|' read -r name _ _ what <<<"$v"
         printf '  %-24s %s\n' "$name" "$what"
@@ -81,6 +83,7 @@ EOF
 }
 
 seeds=3
+steady_seeds=1
 env_steps=400000
 long_env_steps=1600000
 rates="0.25,0.5,1.0"
@@ -95,6 +98,7 @@ started_from=""
 while [[ $# -gt 0 ]]; do
     case "$1" in
         --seeds) seeds="${2:?--seeds needs a number}"; shift 2 ;;
+        --steady-seeds) steady_seeds="${2:?--steady-seeds needs a number}"; shift 2 ;;
         --env-steps) env_steps="${2:?--env-steps needs a number}"; shift 2 ;;
         --long-env-steps) long_env_steps="${2:?--long-env-steps needs a number}"; shift 2 ;;
         --rates) rates="${2:?--rates needs rates}"; shift 2 ;;
@@ -109,8 +113,8 @@ while [[ $# -gt 0 ]]; do
         *) echo "reproduce-hazards.sh: unknown argument \`$1\` (see --help)" >&2; exit 2 ;;
     esac
 done
-require_positive reproduce-hazards.sh "seeds:$seeds" "env-steps:$env_steps" "runs:$runs" "eval-every:$eval_every"
-for pair in "seeds:$seeds" "env-steps:$env_steps" "long-env-steps:$long_env_steps" "runs:$runs"; do
+require_positive reproduce-hazards.sh "seeds:$seeds" "steady-seeds:$steady_seeds" "env-steps:$env_steps" "runs:$runs" "eval-every:$eval_every"
+for pair in "seeds:$seeds" "steady-seeds:$steady_seeds" "env-steps:$env_steps" "long-env-steps:$long_env_steps" "runs:$runs"; do
     if ! [[ "${pair#*:}" =~ ^[0-9]+$ ]]; then
         echo "reproduce-hazards.sh: --${pair%%:*} ${pair#*:} must be a whole number" >&2
         exit 2
@@ -292,11 +296,13 @@ if [[ "$report_only" == 0 ]]; then
             if wanted "$name"; then train_and_evaluate "$name" "$preset" "$extra" "$(rate_of "$name")" "$seed" "$env_steps"; fi
         done
     done
-    # 2b. The search for a steadier policy: seed 1 of each candidate, hz-hybrid-tuned's rate and
-    # budget; its baseline is hz-hybrid-tuned's seed 1.
-    for v in "${steady[@]}"; do
-        IFS='|' read -r name preset extra _ <<<"$v"
-        if wanted steady || wanted "$name"; then train_and_evaluate "$name" "$preset" "$extra" "$(rate_of "$tuned")" 1 "$env_steps"; fi
+    # 2b. The search for a steadier policy: seeds 1..--steady-seeds of each candidate,
+    # hz-hybrid-tuned's rate and budget; its baseline is hz-hybrid-tuned's seeds.
+    for seed in $(seq 1 "$steady_seeds"); do
+        for v in "${steady[@]}"; do
+            IFS='|' read -r name preset extra _ <<<"$v"
+            if wanted steady || wanted "$name"; then train_and_evaluate "$name" "$preset" "$extra" "$(rate_of "$tuned")" "$seed" "$env_steps"; fi
+        done
     done
     # 3. The longer-budget row: each seed's hz-hybrid-tuned run trained on.
     IFS='|' read -r long_name _ _ _ <<<"${long[0]}"

@@ -87,6 +87,14 @@ def test_an_agents_own_search_counts_its_seed_1_where_it_was_trained_at_that_rat
     assert "| hz-hybrid-avoid | 0.25 (best) | rate-0.25-hz-hybrid-avoid | 0.600 | 0.100 |" in table
 
 
+def test_a_steadiness_candidate_joins_the_tables_once_it_has_two_seeds():
+    evals = {(s, t): {"last": agent_report("last", {"stalled_car": [run(0.5)]})} for s in hz.SUITES for t in hz.TOWNS}
+    one = {"st-lr-half": {1: {"evals": evals}}}
+    assert [label for label, seeds, _ in hz.rows(one, {}) if seeds] == [], "one seed: the search's table only"
+    two = {"st-lr-half": {1: {"evals": evals}, 2: {"evals": evals}}}
+    assert [(label, seeds) for label, seeds, _ in hz.rows(two, {}) if seeds] == [("st-lr-half (last)", [1, 2])]
+
+
 def test_behaviour_counts_returns_among_the_runs_that_passed():
     seed = {"stalled_car": [run(1.0, lateral=3.0), run(0.2, lateral=1.0, passed=False, back=False)],
             "pedestrian_crossing": [run(1.0, speed=2.0), run(0.5, infractions=["pedestrian_collision"], speed=8.0), run(0.3, speed=None)]}
