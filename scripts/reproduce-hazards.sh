@@ -52,8 +52,8 @@ scripts/reproduce-hazards.sh — the hazard experiment of docs/RESULTS.md.
   --env-steps N        training budget per run, environment steps (default 400000)
   --long-env-steps N   the longer-budget row's budget (default 1600000, 4x); 0 skips the row
   --rates R,R          hazard rates searched, seed 1 at each (default 0.25,0.5,1.0)
-  --rate-search A,B    the agents searched for a rate of their own (default hz-hybrid-tuned,
-                       hz-hybrid-avoid,hz-hybrid-paper-inputs); the others train at hz-hybrid-tuned's
+  --rate-search A,B    the agents searched for a rate of their own (default: all four); the others
+                       train at hz-hybrid-tuned's
   --steady-seeds N     seeds per candidate of the steadiness search, 1..N (default 1)
   --agents A,B         train only these (names below, `rates` for the rate searches, `long` for the
                        longer row, `steady` for the steadiness search); the report still covers
@@ -87,7 +87,7 @@ steady_seeds=1
 env_steps=400000
 long_env_steps=1600000
 rates="0.25,0.5,1.0"
-rate_search="hz-hybrid-tuned,hz-hybrid-avoid,hz-hybrid-paper-inputs"
+rate_search="hz-hybrid-tuned,hz-hybrid-avoid,hz-hybrid-paper-inputs,hz-e2e-best"
 only=""
 runs=5
 eval_every=1
@@ -283,7 +283,7 @@ if [[ "$report_only" == 0 ]]; then
         if [[ -f "$results/$1/seed1/run.json" ]]; then
             kept=$(kept_rate "$1")
             if python3 -c 'import sys; sys.exit(float(sys.argv[1]) == float(sys.argv[2]))' "$kept" "$want"; then
-                echo "== $1: its kept seeds were trained at rate $kept and its search now picks $want; they stay (move $results/$1 aside to retrain at $want)" >&2
+                echo "== $1: its kept seeds were trained at rate $kept and its search now picks $want; they stay (to retrain at $want, move $results/$1 out of $results: its seed 1 then becomes the search's run at $want)" >&2
                 want="$kept"
             fi
         fi
