@@ -85,10 +85,15 @@ impl ConvGeom {
 pub fn kernel_k_major(w: &[f32], g: &ConvGeom, out: &mut Vec<f32>) {
     out.clear();
     out.resize(9 * g.cin * g.cout, 0.0);
-    for f in 0..g.cout {
-        for c in 0..g.cin {
-            for k in 0..9 {
-                out[(k * g.cin + c) * g.cout + f] = w[(f * g.cin + c) * 9 + k];
+    // A transpose, in blocks of 16 filters: a block's weights (16 × 9·cin, 36 KiB at 64 channels)
+    // stay in L1 while its column of the output is written. Filter by filter, every write fell
+    // 9·cin·cout apart, on one L1 set, and the copy cost a third of a batch-1 forward pass.
+    for f0 in (0..g.cout).step_by(16) {
+        let f1 = (f0 + 16).min(g.cout);
+        for (row, out_row) in out.chunks_exact_mut(g.cout).enumerate() {
+            let (k, c) = (row / g.cin, row % g.cin);
+            for (f, o) in (f0..f1).zip(&mut out_row[f0..f1]) {
+                *o = w[(f * g.cin + c) * 9 + k];
             }
         }
     }
@@ -99,22 +104,22 @@ pub fn kernel_k_major(w: &[f32], g: &ConvGeom, out: &mut Vec<f32>) {
 pub fn kernel_flipped(w: &[f32], g: &ConvGeom, out: &mut Vec<f32>) {
     out.clear();
     out.resize(9 * g.cin * g.cout, 0.0);
-    for f in 0..g.cout {
-        for c in 0..g.cin {
-            for k in 0..9 {
-                out[((8 - k) * g.cout + f) * g.cin + c] = w[(f * g.cin + c) * 9 + k];
-            }
+    // Written in order, as `kernel_k_major` is: the reads of a row are 9 values apart.
+    for (row, out_row) in out.chunks_exact_mut(g.cin).enumerate() {
+        let (k, f) = (8 - row / g.cout, row % g.cout);
+        for (c, o) in out_row.iter_mut().enumerate() {
+            *o = w[(f * g.cin + c) * 9 + k];
         }
     }
 }
 
 /// Adds a `(ky, kx, c) × cout` kernel gradient into candle's `[cout, cin, 3, 3]` layout.
 pub fn add_k_major_to_candle(dk: &[f32], g: &ConvGeom, out: &mut [f32]) {
-    for f in 0..g.cout {
-        for c in 0..g.cin {
-            for k in 0..9 {
-                out[(f * g.cin + c) * 9 + k] += dk[(k * g.cin + c) * g.cout + f];
-            }
+    // Read in order (see `kernel_k_major`); each value is added once, so the order changes no bit.
+    for (row, dk_row) in dk[..9 * g.cin * g.cout].chunks_exact(g.cout).enumerate() {
+        let (k, c) = (row / g.cin, row % g.cin);
+        for (f, &d) in dk_row.iter().enumerate() {
+            out[(f * g.cin + c) * 9 + k] += d;
         }
     }
 }
