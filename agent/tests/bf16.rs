@@ -54,7 +54,8 @@ fn bf16_matches_f32_within_bf16_rounding() {
     if skip("bf16_matches_f32_within_bf16_rounding") {
         return;
     }
-    for (shape, batch) in [(PAPER_48, 3), (NetShape { height: 21, width: 19, channels: 3, filters: 32, hidden: 16, ..PAPER_48 }, 2)] {
+    let small = NetShape { height: 21, width: 19, channels: 3, filters: 32, hidden: 16, ..PAPER_48 };
+    for (shape, batch) in [(PAPER_48, 3), (small, 2)] {
         let (q32, g32) = run(shape, false, 2, batch, 7);
         let (q16, g16) = run(shape, true, 2, batch, 7);
         let e = rel_l2(&q16, &q32);
@@ -73,20 +74,44 @@ fn bf16_matches_f32_within_bf16_rounding() {
     }
 }
 
+/// The learner's batch, where fc1 runs on the bf16 kernel too (`dense_bf16::MIN_BATCH`). Over 32
+/// random images more pre-activations sit near zero, so more ReLU masks flip between the paths
+/// and every layer's gradient but the Q head's is 7–12 % apart (measured: 10–12 % with fc1 in f32
+/// as well, so the flips, not fc1's products, set the figure; those are checked against their
+/// definition in `dense_bf16`'s tests). A wrong layout or transpose would be 100 % apart.
+#[test]
+fn bf16_matches_f32_at_the_learners_batch() {
+    if skip("bf16_matches_f32_at_the_learners_batch") {
+        return;
+    }
+    let (q32, g32) = run(PAPER_48, false, 2, 32, 7);
+    let (q16, g16) = run(PAPER_48, true, 2, 32, 7);
+    let e = rel_l2(&q16, &q32);
+    assert!(e < 1e-2, "Q values {e:.2e} apart");
+    for (((name, _), a), b) in g16.names.iter().zip(&g16.values).zip(&g32.values) {
+        let e = rel_l2(a, b);
+        let tolerance = if name.starts_with('q') { 1e-2 } else { 0.2 };
+        assert!(e < tolerance, "gradient of {name} {e:.2e} apart");
+    }
+}
+
 #[test]
 fn bf16_is_bit_identical_on_repeat_and_across_thread_counts() {
     if skip("bf16_is_bit_identical_on_repeat_and_across_thread_counts") {
         return;
     }
-    let (q1, g1) = run(PAPER_48, true, 1, 4, 3);
-    let (q2, g2) = run(PAPER_48, true, 2, 4, 3);
-    let (q3, g3) = run(PAPER_48, true, 2, 4, 3);
-    assert_eq!(q2, q3);
-    assert_eq!(g2.values, g3.values);
-    // Each image runs on one thread whatever the count; the kernel sums in a fixed order.
-    assert_eq!(q1, q2);
-    for (((name, _), a), b) in g1.names.iter().zip(&g1.values).zip(&g2.values) {
-        assert!(rel_l2(a, b) < 1e-5, "{name}: 1 vs 2 threads");
+    // An actor's batch (fc1 in f32) and the learner's (fc1 on the bf16 kernel).
+    for batch in [4, 32] {
+        let (q1, g1) = run(PAPER_48, true, 1, batch, 3);
+        let (q2, g2) = run(PAPER_48, true, 2, batch, 3);
+        let (q3, g3) = run(PAPER_48, true, 2, batch, 3);
+        assert_eq!(q2, q3, "batch {batch}");
+        assert_eq!(g2.values, g3.values, "batch {batch}");
+        // Each image runs on one thread whatever the count; the kernel sums in a fixed order.
+        assert_eq!(q1, q2, "batch {batch}");
+        for (((name, _), a), b) in g1.names.iter().zip(&g1.values).zip(&g2.values) {
+            assert!(rel_l2(a, b) < 1e-5, "{name}: 1 vs 2 threads, batch {batch}");
+        }
     }
 }
 

@@ -133,6 +133,19 @@ impl PackedB {
             }
             return;
         }
+        if v.row_stride == 1 && k.is_multiple_of(2) {
+            // The source is transposed (its columns contiguous: a batch of inputs as the right
+            // matrix): each column's pair of rows is two neighbouring values.
+            for j in 0..n {
+                let col = &src[v.offset + j * v.col_stride..][..k];
+                for (pair, kv) in col.chunks_exact(2).enumerate() {
+                    let o = pair * 2 * self.n_pad + 2 * j;
+                    self.data[o] = super::bf16::from_f32_finite(kv[0]);
+                    self.data[o + 1] = super::bf16::from_f32_finite(kv[1]);
+                }
+            }
+            return;
+        }
         for kk in 0..k {
             let row = &mut self.data[(kk / 2) * 2 * self.n_pad..(kk / 2 + 1) * 2 * self.n_pad];
             for j in 0..n {
@@ -164,5 +177,31 @@ mod tests {
         assert_eq!(blocks[3].a_k, 5 + 1000 + 6 * K_STEP);
         assert_eq!(blocks[3].b_k, (7 * K_STEP + 6 * K_STEP) / 2 * 2 * 64);
         assert_eq!(AView::rows(0, 4, 0, 32).k_blocks(16).count(), 0);
+    }
+
+    /// Every source layout packs to the same pairs: contiguous rows, contiguous columns (a
+    /// transposed source) and any strides, with K and N that are no multiple of a step.
+    #[test]
+    fn every_source_layout_packs_the_same_pairs() {
+        for (k, n) in [(64, 32), (46, 21), (7, 3), (2, 17)] {
+            let rows: Vec<f32> = (0..k * n).map(|i| (i as f32 * 0.37).sin()).collect();
+            let mut cols = vec![0.0; k * n];
+            let mut strided = vec![0.0; 3 * k * n + 5];
+            for kk in 0..k {
+                for j in 0..n {
+                    cols[j * k + kk] = rows[kk * n + j];
+                    strided[5 + kk * 3 * n + 2 * j] = rows[kk * n + j];
+                }
+            }
+            let mut expected = PackedB::default();
+            expected.pack(&rows, View::rows(0, k, n, n));
+            for (src, v) in
+                [(&cols, View::rows(0, n, k, k).t()), (&strided, View { offset: 5, rows: k, cols: n, row_stride: 3 * n, col_stride: 2 })]
+            {
+                let mut got = PackedB::default();
+                got.pack(src, v);
+                assert_eq!(got, expected, "k {k}, n {n}, {v:?}");
+            }
+        }
     }
 }

@@ -14,6 +14,7 @@
 //! - [`conv`]: 3×3 convolution forward, kernel gradient and input gradient of one image.
 //! - [`conv_bf16`]: the wide layers' convolution on a bf16 kernel.
 //! - [`conv_direct`]: the first layer computed directly, fused with bias, ReLU and pooling.
+//! - [`dense_bf16`]: the first dense layer on a bf16 kernel, for a training batch.
 //! - [`pool`]: fused bias + ReLU + 2×2 average pooling and its backward pass.
 //! - [`model`]: the whole network, forward and backward, over a batch.
 //! - [`bands`]: one image's layers split across threads (the actors' small batches).
@@ -31,6 +32,7 @@ pub mod bf16_matmul;
 pub mod conv;
 pub mod conv_bf16;
 pub mod conv_direct;
+pub mod dense_bf16;
 pub mod gemm;
 pub mod inference;
 pub mod model;

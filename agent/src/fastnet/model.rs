@@ -14,6 +14,7 @@ use super::bf16_matmul::PackedB;
 use super::conv::{self, ConvGeom};
 use super::conv_bf16::{self, Operands};
 use super::conv_direct;
+use super::dense_bf16::{self, DenseBf16};
 use super::gemm::{View, matmul};
 use super::params::{CONV_B, CONV_W, FC1_B, FC1_W, FC2_B, FC2_W, Params, Q_B, Q_W};
 use super::pool::{self, Strided};
@@ -70,6 +71,8 @@ pub struct FastNet {
     /// which at an actor's batch of 4 was a fifth of its inference (docs/PERFORMANCE.md, "README's
     /// `actor train`: where the cores go").
     dense_wt: [Vec<f32>; 2],
+    /// fc1's bf16 operands, where it runs on the bf16 kernel (`dense_bf16`).
+    fc1_bf16: DenseBf16,
     k_major: [Vec<f32>; 3],
     flipped: [Vec<f32>; 3],
     /// Whether the layers that fit (`conv_bf16::fits`) run in bf16, and their kernels
@@ -121,6 +124,7 @@ impl FastNet {
             dh2: Vec::new(),
             dense_t: Vec::new(),
             dense_wt: Default::default(),
+            fc1_bf16: DenseBf16::default(),
             k_major: Default::default(),
             flipped: Default::default(),
             bf16,
@@ -128,6 +132,12 @@ impl FastNet {
             flipped_packed: Default::default(),
             k_direct: Vec::new(),
         }
+    }
+
+    /// Whether fc1 runs on the bf16 kernel for a batch of `b`: on the bf16 path, for a training
+    /// batch (`dense_bf16::MIN_BATCH`).
+    fn fc1_on_bf16(&self, b: usize) -> bool {
+        self.bf16 && b >= dense_bf16::MIN_BATCH
     }
 
     /// Whether layer `l` is computed directly ([`is_direct`]).
@@ -223,6 +233,10 @@ impl FastNet {
     /// changes them (training, whose batch of 32 amortises `gemm`'s own packing).
     pub fn pack_for_inference(&mut self, params: &Params) {
         self.pack_kernels(params);
+        if self.threads > 1 {
+            // Split by units, the dense layers read `W`'s rows (`dense`): no transpose to make.
+            return;
+        }
         let s = self.shape;
         // Not the Q head: a few columns, cheap to pack, and on its own layout the same bits as ever.
         let sizes = [(self.flat(), s.hidden), (s.hidden, s.hidden)];
@@ -290,9 +304,15 @@ impl FastNet {
             row[conv_flat..].copy_from_slice(&sc[..s.scalars]);
         }
         let (h, t, b) = (s.hidden, self.threads, batch);
+        let fc1_on_bf16 = self.fc1_on_bf16(b);
         let scratch = &mut self.dense_t;
         let [fc1_t, fc2_t] = &self.dense_wt;
-        dense(&mut self.h1, &self.x, (&params.values[FC1_W], fc1_t), &params.values[FC1_B], (b, flat, h), true, t, scratch);
+        if fc1_on_bf16 {
+            self.fc1_bf16.forward(&mut self.h1, &self.x, &params.values[FC1_W], b, flat, h, t);
+            bias_act(&mut self.h1, &params.values[FC1_B], h, true);
+        } else {
+            dense(&mut self.h1, &self.x, (&params.values[FC1_W], fc1_t), &params.values[FC1_B], (b, flat, h), true, t, scratch);
+        }
         dense(&mut self.h2, &self.h1, (&params.values[FC2_W], fc2_t), &params.values[FC2_B], (b, h, h), true, t, scratch);
         dense(&mut self.q, &self.h2, (&params.values[Q_W], &[]), &params.values[Q_B], (b, h, s.actions), false, t, scratch);
     }
@@ -312,8 +332,15 @@ impl FastNet {
         back_through(&mut self.dh2, dq, &params.values[Q_W], b, a, h, Some(&self.h2), t);
         dense_grads(&self.dh2, &self.h1, b, h, h, weight_and_bias(grads, FC2_W, FC2_B), t);
         back_through(&mut self.dh1, &self.dh2, &params.values[FC2_W], b, h, h, Some(&self.h1), t);
-        dense_grads(&self.dh1, &self.x, b, h, flat, weight_and_bias(grads, FC1_W, FC1_B), t);
-        back_through(&mut self.dx, &self.dh1, &params.values[FC1_W], b, h, flat, None, t);
+        if self.fc1_on_bf16(b) {
+            let (dw, db) = weight_and_bias(grads, FC1_W, FC1_B);
+            self.fc1_bf16.weight_grad(dw, &self.dh1, &self.x, b, h, flat, t);
+            bias_grad(&self.dh1, h, db);
+            self.fc1_bf16.input_grad(&mut self.dx, &self.dh1, &params.values[FC1_W], b, h, flat, t);
+        } else {
+            dense_grads(&self.dh1, &self.x, b, h, flat, weight_and_bias(grads, FC1_W, FC1_B), t);
+            back_through(&mut self.dx, &self.dh1, &params.values[FC1_W], b, h, flat, None, t);
+        }
 
         if self.layer_direct(0) {
             // The forward pass laid it out, but maybe from other parameters (a target network's).
@@ -521,9 +548,9 @@ fn weight_and_bias(grads: &mut Params, w: usize, b: usize) -> (&mut [f32], &mut 
 }
 
 /// `out = act(input · Wᵀ + bias)` for a candle `Linear` weight `W` (`n × k`), given with its
-/// transpose `wt` (`k × n`; empty: not laid out, `W` is used), and a batch of `b`; a batch
-/// smaller than the thread count is split by units (`scratch` holds the bands' output), which
-/// reads `W`'s rows.
+/// transpose `wt` (`k × n`; empty: not laid out, `W` is used), and a batch of `b`; on more than
+/// one thread the units are split across them (`scratch` holds the bands' output), each band
+/// reading its rows of `W`.
 #[allow(clippy::too_many_arguments)]
 fn dense(
     out: &mut [f32],
@@ -535,7 +562,10 @@ fn dense(
     threads: usize,
     scratch: &mut Vec<f32>,
 ) {
-    if b < threads {
+    if threads > 1 {
+        // Also for the learner's batch of 32: `gemm`'s own two threads took 0.8 ms for fc1's
+        // 32 × 2306 × 256 product where two bands of units on one thread each take 0.24 (and one
+        // thread 0.4), three times per update.
         bands::dense(out, input, w, b, k, n, scratch, threads);
     } else if wt.is_empty() || b == 1 {
         // One image: `gemm` takes its matrix-vector path, which reads `W`'s rows in place (no
@@ -546,6 +576,11 @@ fn dense(
         // matrix W has contiguous columns, which it reads in place instead of packing them.
         matmul(out, View::rows(0, b, n, n), false, input, View::rows(0, b, k, k), wt, View::rows(0, k, n, n), threads);
     }
+    bias_act(out, bias, n, relu);
+}
+
+/// Adds `bias` to each row of `out` (`n` wide), then the ReLU where `relu`.
+fn bias_act(out: &mut [f32], bias: &[f32], n: usize, relu: bool) {
     for row in out.chunks_exact_mut(n) {
         for (o, &bv) in row.iter_mut().zip(bias) {
             *o += bv;
@@ -576,6 +611,11 @@ fn transpose(w: &[f32], rows: usize, cols: usize, wt: &mut Vec<f32>) {
 #[allow(clippy::too_many_arguments)]
 fn dense_grads(upstream: &[f32], input: &[f32], b: usize, n: usize, k: usize, (dw, db): (&mut [f32], &mut [f32]), threads: usize) {
     matmul(dw, View::rows(0, n, k, k), false, upstream, View::rows(0, b, n, n).t(), input, View::rows(0, b, k, k), threads);
+    bias_grad(upstream, n, db);
+}
+
+/// A dense layer's bias gradient: the column sums of `upstream` (`n` wide).
+fn bias_grad(upstream: &[f32], n: usize, db: &mut [f32]) {
     db.fill(0.0);
     for row in upstream.chunks_exact(n) {
         for (d, &u) in db.iter_mut().zip(row) {
