@@ -137,3 +137,28 @@ fn bf16_is_refused_where_no_bf16_kernel_runs() {
     let message = refused.downcast_ref::<String>().cloned().unwrap_or_default();
     assert!(message.contains("bf16 without a bf16 kernel"), "{message}");
 }
+
+/// A network used again keeps its bf16 buffers (packed operands, transposed inputs, their zeroed
+/// padding) and rewrites only the values: after other batches and other weights, the same call
+/// gives the bits of a fresh network.
+#[test]
+fn bf16_buffers_reused_across_calls_leak_nothing() {
+    if skip("bf16_buffers_reused_across_calls_leak_nothing") {
+        return;
+    }
+    let (fresh_q, fresh_g) = run(PAPER_48, true, 2, 32, 5);
+    let params = Params::init(PAPER_48, 5);
+    let mut net = FastNet::with_precision(PAPER_48, 2, true);
+    for (batch, seed) in [(17, 9), (32, 8), (3, 7)] {
+        let other = Params::init(PAPER_48, seed);
+        let (images, scalars, coef) = inputs(PAPER_48, batch, seed + 1);
+        net.forward(&other, &images, &scalars);
+        net.backward(&other, &coef, &mut Params::zeros(PAPER_48));
+    }
+    let (images, scalars, coef) = inputs(PAPER_48, 32, 6);
+    let q = net.forward(&params, &images, &scalars).to_vec();
+    let mut grads = Params::zeros(PAPER_48);
+    net.backward(&params, &coef, &mut grads);
+    assert_eq!(q, fresh_q);
+    assert_eq!(grads.values, fresh_g.values);
+}

@@ -91,6 +91,8 @@ pub struct PackedB {
     /// Aligned to a cache line, as every tile row of it then is (rows are 64 bytes).
     pub(super) data: Aligned<u16>,
     pub(super) k_pad: usize,
+    /// K before padding: with N, what the zeroed padding is laid out for.
+    k: usize,
     pub(super) n: usize,
     pub(super) n_pad: usize,
 }
@@ -103,11 +105,17 @@ impl PackedB {
     /// If the view leaves `src`.
     pub fn pack(&mut self, src: &[f32], v: View) {
         let (k, n) = (v.rows, v.cols);
-        self.k_pad = k.div_ceil(K_STEP) * K_STEP;
-        self.n = n;
-        self.n_pad = n.div_ceil(N_STEP) * N_STEP;
-        self.data.clear();
-        self.data.resize(self.k_pad * self.n_pad, 0);
+        if (k, n) != (self.k, self.n) || self.data.len() != self.k_pad * self.n_pad {
+            // A new shape: zero it all. The same shape again writes every value of the matrix
+            // and leaves the padding as it was, zero (a matrix packed per image or per call
+            // spent a tenth of its time clearing what it then overwrote).
+            self.k = k;
+            self.k_pad = k.div_ceil(K_STEP) * K_STEP;
+            self.n = n;
+            self.n_pad = n.div_ceil(N_STEP) * N_STEP;
+            self.data.clear();
+            self.data.resize(self.k_pad * self.n_pad, 0);
+        }
         if k > 0 && n > 0 {
             assert!(
                 (v.offset + (k - 1) * v.row_stride + (n - 1) * v.col_stride) < src.len(),
@@ -177,6 +185,21 @@ mod tests {
         assert_eq!(blocks[3].a_k, 5 + 1000 + 6 * K_STEP);
         assert_eq!(blocks[3].b_k, (7 * K_STEP + 6 * K_STEP) / 2 * 2 * 64);
         assert_eq!(AView::rows(0, 4, 0, 32).k_blocks(16).count(), 0);
+    }
+
+    /// Packing again into the same buffer, in the same shape or after another, gives what a
+    /// fresh buffer does (the padding stays zero where only the values are rewritten).
+    #[test]
+    fn a_buffer_packed_again_equals_a_fresh_one() {
+        let values = |n: usize, seed: f32| -> Vec<f32> { (0..n).map(|i| (i as f32 * 0.71 + seed).cos()).collect() };
+        let mut reused = PackedB::default();
+        for (k, n, seed) in [(45, 20, 1.0), (45, 20, 2.0), (7, 33, 3.0), (45, 20, 4.0), (64, 16, 5.0)] {
+            let src = values(k * n, seed);
+            reused.pack(&src, View::rows(0, k, n, n));
+            let mut fresh = PackedB::default();
+            fresh.pack(&src, View::rows(0, k, n, n));
+            assert_eq!(reused, fresh, "k {k}, n {n}");
+        }
     }
 
     /// Every source layout packs to the same pairs: contiguous rows, contiguous columns (a

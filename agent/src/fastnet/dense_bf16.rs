@@ -23,8 +23,10 @@ pub const MIN_BATCH: usize = 16;
 pub struct DenseBf16 {
     /// `W` in bf16, `n` rows of K padded to a tile step.
     w_rows: Aligned<u16>,
-    /// The forward pass's `inputᵀ`, or the weight gradient's `input`, packed.
-    packed: PackedB,
+    /// The forward pass's `inputᵀ`, packed.
+    input_t: PackedB,
+    /// The weight gradient's `input`, packed.
+    input: PackedB,
     /// The upstream gradient in bf16 (transposed for the weight gradient), K padded.
     upstream: Aligned<u16>,
     /// `W` packed as the input gradient's right matrix.
@@ -68,9 +70,9 @@ impl DenseBf16 {
         assert!(out.len() == b * n && input.len() == b * k && w.len() == n * k, "dense_bf16::forward: {b} × {k} · ({n} × {k})ᵀ");
         let k_pad = k.next_multiple_of(K_STEP);
         rows_to_bf16(w, n, k, k_pad, &mut self.w_rows);
-        self.packed.pack(input, View::rows(0, b, k, k).t());
+        self.input_t.pack(input, View::rows(0, b, k, k).t());
         self.out_t.resize(n * b, 0.0);
-        let (w_rows, packed) = (&self.w_rows[..], &self.packed);
+        let (w_rows, packed) = (&self.w_rows[..], &self.input_t);
         bands(&mut self.out_t, n, b, threads, |first, rows, dst| {
             bf16_matmul::matmul(dst, View::rows(0, rows, b, b), false, w_rows, AView::rows(first * k_pad, rows, k_pad, k_pad), packed);
         });
@@ -97,8 +99,8 @@ impl DenseBf16 {
                 self.upstream[j * b_pad + i] = bf16::from_f32_finite(u);
             }
         }
-        self.packed.pack(input, View::rows(0, b, k, k));
-        let (a, packed) = (&self.upstream[..], &self.packed);
+        self.input.pack(input, View::rows(0, b, k, k));
+        let (a, packed) = (&self.upstream[..], &self.input);
         bands(dw, n, k, threads, |first, rows, dst| {
             bf16_matmul::matmul(dst, View::rows(0, rows, k, k), false, a, AView::rows(first * b_pad, rows, b_pad, b_pad), packed);
         });
@@ -123,10 +125,11 @@ impl DenseBf16 {
 
 /// `src` (`rows × cols`) in bf16, each row zero-padded to `stride` values.
 fn rows_to_bf16(src: &[f32], rows: usize, cols: usize, stride: usize, dst: &mut Aligned<u16>) {
-    dst.clear();
     dst.resize(rows * stride, 0);
     for (d, s) in dst.chunks_exact_mut(stride).zip(src.chunks_exact(cols)) {
-        bf16::convert(s, &mut d[..cols]);
+        let (values, pad) = d.split_at_mut(cols);
+        bf16::convert(s, values);
+        pad.fill(0);
     }
 }
 

@@ -37,10 +37,11 @@ struct Part {
     patches: Vec<f32>,
     /// bf16 path: each layer's padded input in bf16, per image (layers that run on a bf16 kernel).
     input_bf16: [Aligned<u16>; 3],
-    /// bf16 path, one image at a time: the input transposed, the output gradient packed and
-    /// in bf16.
-    input_t: Aligned<u16>,
-    grad_packed: PackedB,
+    /// bf16 path, one image at a time: the input transposed and the output gradient packed (a
+    /// buffer per layer, so that each keeps its shape and its zeroed padding), and the output
+    /// gradient in bf16.
+    input_t: [Aligned<u16>; 3],
+    grad_packed: [PackedB; 3],
     grad_bf16: Aligned<u16>,
     /// Kernel (k-major) and bias gradient partial sums.
     dk: [Aligned<f32>; 3],
@@ -93,8 +94,8 @@ impl FastNet {
 
     /// A network of `shape` on up to `threads` threads whose wide convolutions run in bf16 on
     /// the machine's bf16 kernel (AMX or AVX512-BF16) when `bf16` (see `fastnet::precision` for
-    /// choosing it); the first layer, the dense layers, the gradients' sums and everything after
-    /// them stay f32.
+    /// choosing it), and fc1 too for a batch of `dense_bf16::MIN_BATCH` or more; the first
+    /// layer, the other dense layers, the gradients' sums and everything after them stay f32.
     ///
     /// # Panics
     /// If `bf16` is asked for where neither bf16 kernel is available.
@@ -501,9 +502,9 @@ impl Part {
                 let input = &self.input[l][img * pi..(img + 1) * pi];
                 if bf16_grads[l] {
                     // The forward pass's bf16 copy of this image (the same condition wrote it).
-                    conv_bf16::transpose_padded(&self.input_bf16[l][img * pi..(img + 1) * pi], g, &mut self.input_t);
-                    conv_bf16::pack_output_grad(grad_padded, g, &mut self.grad_packed);
-                    conv_bf16::kernel_grad(&self.input_t, &self.grad_packed, g, &mut self.dk[l]);
+                    conv_bf16::transpose_padded(&self.input_bf16[l][img * pi..(img + 1) * pi], g, &mut self.input_t[l]);
+                    conv_bf16::pack_output_grad(grad_padded, g, &mut self.grad_packed[l]);
+                    conv_bf16::kernel_grad(&self.input_t[l], &self.grad_packed[l], g, &mut self.dk[l]);
                 } else {
                     conv::kernel_grad(input, grad_padded, g, &mut self.dk[l], &mut self.patches, threads);
                 }
