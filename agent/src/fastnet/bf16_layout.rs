@@ -129,10 +129,7 @@ impl PackedB {
                 let even = &src[v.offset + 2 * pair * v.row_stride..][..n];
                 if 2 * pair + 1 < k {
                     let odd = &src[v.offset + (2 * pair + 1) * v.row_stride..][..n];
-                    for ((o, &e), &d) in out.chunks_exact_mut(2).zip(even).zip(odd) {
-                        o[0] = super::bf16::from_f32_finite(e);
-                        o[1] = super::bf16::from_f32_finite(d);
-                    }
+                    super::bf16::convert_pairs(even, odd, &mut out[..2 * n]);
                 } else {
                     for (o, &e) in out.chunks_exact_mut(2).zip(even) {
                         o[0] = super::bf16::from_f32_finite(e);
