@@ -2,7 +2,8 @@
 //! threads, `gemm`'s own threading does little for one image (the per-call hand-off costs more
 //! than the work it shares), so each thread instead takes a band of the output — a band of image
 //! lines (their convolution, then bias, ReLU and pooling of those lines) or a band of a dense
-//! layer's units. Bands share only read-only inputs and write disjoint slices, on the `rayon` pool
+//! layer's units (for any batch on more than one thread: `gemm`'s own two threads were slower at
+//! the learner's 32 rows too). Bands share only read-only inputs and write disjoint slices, on the `rayon` pool
 //! `gemm` already runs on. A convolution output is the same dot product as on one thread; a dense
 //! unit's sum may be ordered differently (Q values within 1e-5 relative, tested).
 

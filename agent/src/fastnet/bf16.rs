@@ -36,15 +36,16 @@ pub fn from_f32_finite(x: f32) -> u16 {
 /// If the lengths differ.
 pub fn convert(src: &[f32], dst: &mut [u16]) {
     assert_eq!(src.len(), dst.len(), "bf16::convert: {} values into {}", src.len(), dst.len());
+    #[cfg(target_arch = "x86_64")]
     if wide() {
         // SAFETY: the CPU has AVX-512F and BW (`wide`).
         #[allow(unsafe_code)]
         unsafe {
             convert_avx512(src, dst);
         }
-    } else {
-        convert_plain(src, dst);
+        return;
     }
+    convert_plain(src, dst);
 }
 
 /// `out[2j] = bf16(even[j])`, `out[2j + 1] = bf16(odd[j])`: two rows of a matrix as one pair row
@@ -60,29 +61,24 @@ pub fn convert_pairs(even: &[f32], odd: &[f32], out: &mut [u16]) {
         odd.len(),
         out.len()
     );
+    #[cfg(target_arch = "x86_64")]
     if wide() {
         // SAFETY: the CPU has AVX-512F and BW (`wide`).
         #[allow(unsafe_code)]
         unsafe {
             convert_pairs_avx512(even, odd, out);
         }
-    } else {
-        convert_pairs_plain(even, odd, out);
+        return;
     }
+    convert_pairs_plain(even, odd, out);
 }
 
 /// Whether the bulk conversions run on 512-bit registers. The crate is built for baseline
 /// x86-64, where these loops vectorise to 128 bits only; the same loops compiled for AVX-512
 /// give the same bits (integer arithmetic) four times as wide.
+#[cfg(target_arch = "x86_64")]
 fn wide() -> bool {
-    #[cfg(target_arch = "x86_64")]
-    {
-        std::is_x86_feature_detected!("avx512f") && std::is_x86_feature_detected!("avx512bw")
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    {
-        false
-    }
+    std::is_x86_feature_detected!("avx512f") && std::is_x86_feature_detected!("avx512bw")
 }
 
 fn convert_plain(src: &[f32], dst: &mut [u16]) {
@@ -120,18 +116,6 @@ unsafe fn convert_pairs_avx512(even: &[f32], odd: &[f32], out: &mut [u16]) {
     convert_pairs_plain(even, odd, out);
 }
 
-#[cfg(not(target_arch = "x86_64"))]
-#[allow(unsafe_code)]
-unsafe fn convert_avx512(src: &[f32], dst: &mut [u16]) {
-    convert_plain(src, dst);
-}
-
-#[cfg(not(target_arch = "x86_64"))]
-#[allow(unsafe_code)]
-unsafe fn convert_pairs_avx512(even: &[f32], odd: &[f32], out: &mut [u16]) {
-    convert_pairs_plain(even, odd, out);
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -145,7 +129,7 @@ mod tests {
             let src = &values[..len];
             let mut out = vec![0; len];
             convert(src, &mut out);
-            assert!(out.iter().zip(src).all(|(&b, &x)| b == from_f32_finite(x)), "convert, {len} values (wide: {})", wide());
+            assert!(out.iter().zip(src).all(|(&b, &x)| b == from_f32_finite(x)), "convert, {len} values");
             let half = len / 2;
             let mut pairs = vec![0; 2 * half];
             convert_pairs(&src[..half], &src[half..2 * half], &mut pairs);

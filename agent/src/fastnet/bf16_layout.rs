@@ -105,7 +105,7 @@ impl PackedB {
     /// If the view leaves `src`.
     pub fn pack(&mut self, src: &[f32], v: View) {
         let (k, n) = (v.rows, v.cols);
-        if (k, n) != (self.k, self.n) || self.data.len() != self.k_pad * self.n_pad {
+        if (k, n) != (self.k, self.n) {
             // A new shape: zero it all. The same shape again writes every value of the matrix
             // and leaves the padding as it was, zero (a matrix packed per image or per call
             // spent a tenth of its time clearing what it then overwrote).

@@ -37,12 +37,12 @@ pub struct DenseBf16 {
 
 /// Splits `rows` rows into `threads` bands of whole 16-row tiles where there are enough, and runs
 /// `work(first, rows_in_band, dst_band)` on each, the last on the calling thread.
-fn bands<F>(dst: &mut [f32], rows: usize, row_len: usize, threads: usize, work: F)
+fn tile_bands<F>(dst: &mut [f32], rows: usize, row_len: usize, threads: usize, work: F)
 where
     F: Fn(usize, usize, &mut [f32]) + Sync,
 {
-    let bands = threads.min(rows.div_ceil(16)).max(1);
     let tiles = rows.div_ceil(16);
+    let bands = threads.min(tiles).max(1);
     let work = &work;
     rayon::scope(|scope| {
         let mut rest = &mut dst[..rows * row_len];
@@ -73,7 +73,7 @@ impl DenseBf16 {
         self.input_t.pack(input, View::rows(0, b, k, k).t());
         self.out_t.resize(n * b, 0.0);
         let (w_rows, packed) = (&self.w_rows[..], &self.input_t);
-        bands(&mut self.out_t, n, b, threads, |first, rows, dst| {
+        tile_bands(&mut self.out_t, n, b, threads, |first, rows, dst| {
             bf16_matmul::matmul(dst, View::rows(0, rows, b, b), false, w_rows, AView::rows(first * k_pad, rows, k_pad, k_pad), packed);
         });
         for (j, units) in self.out_t.chunks_exact(b).enumerate() {
@@ -101,7 +101,7 @@ impl DenseBf16 {
         }
         self.input.pack(input, View::rows(0, b, k, k));
         let (a, packed) = (&self.upstream[..], &self.input);
-        bands(dw, n, k, threads, |first, rows, dst| {
+        tile_bands(dw, n, k, threads, |first, rows, dst| {
             bf16_matmul::matmul(dst, View::rows(0, rows, k, k), false, a, AView::rows(first * b_pad, rows, b_pad, b_pad), packed);
         });
     }
@@ -117,7 +117,7 @@ impl DenseBf16 {
         rows_to_bf16(upstream, b, n, n_pad, &mut self.upstream);
         self.w_packed.pack(w, View::rows(0, n, k, k));
         let (a, packed) = (&self.upstream[..], &self.w_packed);
-        bands(dinput, b, k, threads, |first, rows, dst| {
+        tile_bands(dinput, b, k, threads, |first, rows, dst| {
             bf16_matmul::matmul(dst, View::rows(0, rows, k, k), false, a, AView::rows(first * n_pad, rows, n_pad, n_pad), packed);
         });
     }

@@ -229,13 +229,13 @@ impl FastNet {
         self.dense_wt.iter_mut().for_each(Vec::clear);
     }
 
-    /// [`Self::pack_kernels`], and the hidden dense layers' weights transposed too: worth its copy
-    /// where one weights version serves many forward passes (an actor's), not where every update
-    /// changes them (training, whose batch of 32 amortises `gemm`'s own packing).
+    /// [`Self::pack_kernels`], and on one thread the hidden dense layers' weights transposed too:
+    /// worth its copy where one weights version serves many forward passes (an actor's), not where
+    /// every update changes them (training, whose batch of 32 amortises `gemm`'s own packing). On
+    /// more threads the dense layers are split by units and read `W`'s rows (`dense`).
     pub fn pack_for_inference(&mut self, params: &Params) {
         self.pack_kernels(params);
         if self.threads > 1 {
-            // Split by units, the dense layers read `W`'s rows (`dense`): no transpose to make.
             return;
         }
         let s = self.shape;
