@@ -50,7 +50,7 @@ def keep_run(a):
     for name in ["eval.jsonl", "train.jsonl"]:
         if (run_dir / name).exists():
             shutil.copyfile(run_dir / name, out / name)
-    episodes, episodes_kept = main_results.keep_episodes(run_dir, out)
+    episodes = main_results.keep_curve(run_dir, out)
     # The baselines drive the same seeds in every evaluation: kept once, left out of the run's.
     for (suite, town), path in eval_files(out).items():
         ev = json.loads(path.read_text())
@@ -77,7 +77,6 @@ def keep_run(a):
         "learner_step": counters.get("last", {}).get("learner_step"),
         "best": counters.get("best"),
         "episodes": len(episodes),
-        "episodes_kept": episodes_kept,
         **main_results.how_it_ran(a, episodes, train),
     }
     if a.started_from:
