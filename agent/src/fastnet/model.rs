@@ -68,9 +68,9 @@ pub struct FastNet {
     dense_t: Vec<f32>,
     /// The hidden dense layers' weights transposed (`k × n`, row-major: fc1, fc2), laid out for
     /// inference (`pack_for_inference`; empty otherwise). `gemm` multiplies them without packing
-    /// a copy; the candle layout (`n × k`) made it pack the whole weight matrix at every call,
-    /// which at an actor's batch of 4 was a fifth of its inference (docs/PERFORMANCE.md, "README's
-    /// `actor train`: where the cores go").
+    /// a copy; the candle layout (`n × k`) made it pack the whole weight matrix at every call, a
+    /// copy as large as the arithmetic it fed at an actor's small batches
+    /// (experiments/performance/CHANGELOG.md, "where the cores go").
     dense_wt: [Vec<f32>; 2],
     /// fc1's bf16 operands, where it runs on the bf16 kernel (`dense_bf16`).
     fc1_bf16: DenseBf16,
@@ -564,9 +564,9 @@ fn dense(
     scratch: &mut Vec<f32>,
 ) {
     if threads > 1 {
-        // Also for the learner's batch of 32: `gemm`'s own two threads took 0.8 ms for fc1's
-        // 32 × 2306 × 256 product where two bands of units on one thread each take 0.24 (and one
-        // thread 0.4), three times per update.
+        // Also for the learner's batch of 32: on fc1's product `gemm`'s own two threads were
+        // slower than its one, and two bands of units, one per thread, faster than either
+        // (docs/PERFORMANCE.md, "Design, in short").
         bands::dense(out, input, w, b, k, n, scratch, threads);
     } else if wt.is_empty() || b == 1 {
         // One image: `gemm` takes its matrix-vector path, which reads `W`'s rows in place (no
