@@ -309,7 +309,7 @@ def report(a):
                               for s, r in sorted(by_seed.items())}
     whole = json.loads(json_out.read_text()) if json_out.exists() else {}
     whole["hazards"] = data
-    json_out.write_text(json.dumps(whole, indent=1) + "\n")
+    main_results.write_json(json_out, whole)
     sections = tables(data)
     (out_dir / "figures").mkdir(parents=True, exist_ok=True)
     svg = kinds_figure(data)

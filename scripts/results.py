@@ -25,6 +25,24 @@ from pathlib import Path
 AGENTS_FILE = Path(__file__).resolve().parent.parent / "experiments" / "agents.txt"
 
 
+def compact_json(value, indent=0):
+    """JSON with one key per line, but any value that fits in 100 columns on one line: results.json
+    stays readable in a diff without a line per number."""
+    flat = json.dumps(value)
+    if not isinstance(value, (dict, list)) or len(flat) + indent <= 100:
+        return flat
+    pad = " " * (indent + 1)
+    if isinstance(value, dict):
+        items = [f"{pad}{json.dumps(k)}: {compact_json(v, indent + 1)}" for k, v in value.items()]
+        return "{\n" + ",\n".join(items) + "\n" + " " * indent + "}"
+    return "[\n" + ",\n".join(pad + compact_json(v, indent + 1) for v in value) + "\n" + " " * indent + "]"
+
+
+def write_json(path, value):
+    """Writes `value` to `path` as compact_json."""
+    path.write_text(compact_json(value) + "\n")
+
+
 def agents_of(group, path=AGENTS_FILE):
     """The names of the agents of `group` in experiments/agents.txt (GROUP|NAME|PRESET|TOML|WHAT
     lines), in the file's order; scripts/lib.sh's `agents_of` reads the same file."""
@@ -355,7 +373,7 @@ def report(a):
         previous = json.loads(json_out.read_text())
         if "hazards" in previous:
             data["hazards"] = previous["hazards"]
-    json_out.write_text(json.dumps(data, indent=1) + "\n")
+    write_json(json_out, data)
     sections = tables(data, names)
     figures(a, runs, names, out_dir, sections)
     write_results_md(out_dir / "RESULTS.md", sections)
