@@ -22,7 +22,7 @@ use std::time::Instant;
 use agent::checkpoint::Counters;
 use agent::config::RunConfig;
 use agent::fastnet::{Inference, Params};
-use learner::state::{ActorRecord, EpisodeOutcome, PublishedWeights, Shared, TrainStats};
+use learner::shared_state::{ActorRecord, EpisodeOutcome, PublishedWeights, Shared, TrainStats};
 use learner::storage::replay::{Replay, ReplayConfig, StepRecord};
 use learner::storage::replay_log::format;
 use learner::storage::versions::VersionLease;

@@ -139,7 +139,7 @@ fn gather_patches(input: &[f32], g: &ConvGeom, first: usize, patches: &mut [f32]
 
 /// Convolution of one padded image (`padded_in` floats) with the k-major kernel, bias excluded,
 /// into `out` (conv-out layout), on `threads` of `gemm`'s threads. `patches` is scratch of
-/// [`ConvGeom::patches_len`] floats. (`fastnet::bands` splits one image's rows across threads
+/// [`ConvGeom::patches_len`] floats. (`fastnet::thread_split` splits one image's rows across threads
 /// instead, which pays off where `gemm`'s threading does not.)
 pub fn forward(input: &[f32], kernel: &[f32], g: &ConvGeom, out: &mut [f32], patches: &mut [f32], threads: usize) {
     let rows = g.rows();

@@ -5,10 +5,9 @@
 //! synchronisation between layers; each thread keeps its own buffers and kernel-gradient partial
 //! sums (summed at the end, in a fixed order, so that results do not depend on timing). The dense
 //! layers run on the whole batch with `gemm`'s own threads. A single image (an actor's inference)
-//! is split across the threads instead, by bands of lines and of units (`fastnet::bands`).
+//! is split across the threads instead, by bands of lines and of units (`fastnet::thread_split`).
 
 use super::aligned::Aligned;
-use super::bands;
 use super::bf16;
 use super::bf16_matmul::PackedB;
 use super::conv::{self, ConvGeom};
@@ -18,6 +17,7 @@ use super::dense_bf16::{self, DenseBf16};
 use super::gemm::{View, matmul};
 use super::params::{CONV_B, CONV_W, FC1_B, FC1_W, FC2_B, FC2_W, Params, Q_B, Q_W};
 use super::pool::{self, Strided};
+use super::thread_split;
 use crate::shape::NetShape;
 
 /// The buffers of one thread's share of the batch.
@@ -421,7 +421,7 @@ impl Part {
                 {
                     let next = &geoms[1];
                     let dst = &mut next_inputs[0][img * next.padded_in()..(img + 1) * next.padded_in()];
-                    bands::direct_pool(input, kernel, bias, g, dst, Strided::padded(next.w, next.cin), bands);
+                    thread_split::direct_pool(input, kernel, bias, g, dst, Strided::padded(next.w, next.cin), bands);
                     continue;
                 }
                 let pre = &mut self.pre[l][img * po..(img + 1) * po];
@@ -436,9 +436,9 @@ impl Part {
                     let next = &geoms[l + 1];
                     let dst = &mut next_inputs[0][img * next.padded_in()..(img + 1) * next.padded_in()];
                     let to = Strided::padded(next.w, next.cin);
-                    bands::conv_pool(ops, g, bias, pre, &mut self.patches, dst, to, bands);
+                    thread_split::conv_pool(ops, g, bias, pre, &mut self.patches, dst, to, bands);
                 } else {
-                    bands::conv(ops, g, pre, &mut self.patches, bands);
+                    thread_split::conv(ops, g, pre, &mut self.patches, bands);
                     let dst = &mut x[img * flat..(img + 1) * flat];
                     pool::forward(pre, bias, g.h, g.w, dst, Strided::channel_major(g.h / 2, g.w / 2));
                 }
@@ -567,7 +567,7 @@ fn dense(
         // Also for the learner's batch of 32: on fc1's product `gemm`'s own two threads were
         // slower than its one, and two bands of units, one per thread, faster than either
         // (docs/PERFORMANCE.md, "Design, in short").
-        bands::dense(out, input, w, b, k, n, scratch, threads);
+        thread_split::dense(out, input, w, b, k, n, scratch, threads);
     } else if wt.is_empty() || b == 1 {
         // One image: `gemm` takes its matrix-vector path, which reads `W`'s rows in place (no
         // packing either way) and sums in the order it always has.

@@ -30,7 +30,7 @@ pub fn dir(run_dir: &Path) -> PathBuf {
 /// The selection score of the evaluation that chose the run's `best/`, if it has one (left by an
 /// interrupted swap: `best.old/`). A record that does not read is reported and treated as none:
 /// the next evaluation writes a new one. (The record is `eval.jsonl`'s line, which the learner
-/// crate defines and `train.rs` writes; only its `selection_score` is read here.)
+/// crate defines and `runner/mod.rs` writes; only its `selection_score` is read here.)
 #[must_use]
 pub fn current(run_dir: &Path) -> Option<f64> {
     [DIR, OLD].into_iter().map(|d| run_dir.join(d).join(RECORD)).find(|p| p.is_file()).and_then(|path| {
@@ -110,7 +110,7 @@ mod tests {
         assert!(beats(0.1, None));
         let weights = fs::read(run.join("checkpoint").join(ONLINE)).unwrap();
         save_scored(run, &weights, &cfg, 0.4, 1000);
-        let agent = crate::greedy::load_checkpoint(&dir(run)).unwrap();
+        let agent = crate::eval::greedy::load_checkpoint(&dir(run)).unwrap();
         assert_eq!((agent.source.env_steps, agent.source.learner_step), (Some(1000), Some(250)));
         let kept = current(run);
         assert_eq!(kept, Some(0.4));
@@ -120,11 +120,11 @@ mod tests {
         assert!(beats(0.5, kept));
         save_scored(run, &weights, &cfg, 0.5, 2000);
         assert_eq!(current(run), Some(0.5));
-        assert_eq!(crate::greedy::load_checkpoint(&dir(run)).unwrap().source.env_steps, Some(2000));
+        assert_eq!(crate::eval::greedy::load_checkpoint(&dir(run)).unwrap().source.env_steps, Some(2000));
         assert!(!run.join(TMP).exists() && !run.join(OLD).exists());
         // Its manifest is checked: damaged weights are refused, not driven.
         fs::write(dir(run).join(ONLINE), b"damaged").unwrap();
-        let e = crate::greedy::load_checkpoint(&dir(run)).unwrap_err();
+        let e = crate::eval::greedy::load_checkpoint(&dir(run)).unwrap_err();
         assert!(format!("{e:#}").contains(ONLINE), "{e:#}");
     }
 

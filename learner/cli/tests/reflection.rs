@@ -14,7 +14,8 @@ use tonic_reflection::pb::{v1, v1alpha};
 async fn start_tiny(dir: &Path) -> Running {
     let cfg_path = dir.join("run.toml");
     std::fs::write(&cfg_path, RunConfig::tiny(&dir.join("run")).to_toml()).unwrap();
-    start(ServeOptions { config: Some(cfg_path), ..ServeOptions::default() }).await.unwrap()
+    let extra_services = Some(learner_cli::reflection::routes().unwrap());
+    start(ServeOptions { config: Some(cfg_path), extra_services, ..ServeOptions::default() }).await.unwrap()
 }
 
 async fn channel(r: &Running) -> tonic::transport::Channel {

@@ -4,6 +4,9 @@
 //! With `--max-minutes`, the run also stops (the same way) once its total run time — summed over
 //! resumptions — reaches the budget, so an interrupted budgeted run resumes to the same budget.
 
+pub mod best;
+pub mod periodic_eval;
+
 use std::path::PathBuf;
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
@@ -15,8 +18,8 @@ use learner::serve::{ServeOptions, start};
 
 use learner::telemetry::records::{EvalRecord, EvalRouteRecord};
 
-use crate::best::Counters;
-use crate::eval::periodic::{PeriodicScore, SEED, score_weights};
+use crate::runner::best::Counters;
+use crate::runner::periodic_eval::{PeriodicScore, SEED, score_weights};
 
 #[derive(Debug, Args)]
 pub struct TrainArgs {
@@ -239,14 +242,14 @@ pub async fn run(args: &TrainArgs) -> Result<()> {
 /// validation seeds, records the result in `eval.jsonl` and keeps the best weights in `best/`;
 /// until aborted.
 async fn periodic_evaluation(
-    shared: std::sync::Arc<learner::state::Shared>,
+    shared: std::sync::Arc<learner::shared_state::Shared>,
     run_dir: PathBuf,
     every: Duration,
     runs: u32,
     reporter: std::sync::Arc<learner::telemetry::progress::Reporter>,
 ) {
     let hazards = shared.cfg.env.hazards.rate > 0.0;
-    let mut best = crate::best::current(&run_dir);
+    let mut best = crate::runner::best::current(&run_dir);
     loop {
         tokio::time::sleep(every).await;
         let (weights, learner_step, env_steps) = {
@@ -269,7 +272,7 @@ async fn periodic_evaluation(
         let mut record = eval_record(&score, runs);
         (record.time_secs, record.env_steps, record.learner_step, record.weights_version) =
             (time_secs, env_steps, learner_step, weights.version);
-        record.best = crate::best::beats(score.selection_score(), best);
+        record.best = crate::runner::best::beats(score.selection_score(), best);
         let hazard_part = record.hazard_driving_score.map_or(String::new(), |h| format!(", hazards {h:.2}"));
         reporter.println(&format!(
             "[eval {:>5.1} min] greedy on the 7 routes ({runs} runs each): {}/7 route types completed in at least half their runs, {:.0}% of runs, mean return {:.1}; driving score {:.2}{hazard_part}{}",
@@ -282,7 +285,7 @@ async fn periodic_evaluation(
         ));
         if record.best {
             let saved = serde_json::to_vec_pretty(&record).map_err(anyhow::Error::from).and_then(|json| {
-                crate::best::save(&run_dir, &weights.bytes, &shared.cfg.to_toml(), Counters { learner_step, env_steps }, &json)
+                crate::runner::best::save(&run_dir, &weights.bytes, &shared.cfg.to_toml(), Counters { learner_step, env_steps }, &json)
             });
             match saved {
                 Ok(_) => best = Some(score.selection_score()),
@@ -299,7 +302,7 @@ async fn periodic_evaluation(
 }
 
 /// Environment steps the run has received, over all its sessions.
-fn env_steps(shared: &learner::state::Shared) -> u64 {
+fn env_steps(shared: &learner::shared_state::Shared) -> u64 {
     shared.counters.lock().expect("counters lock").env_steps
 }
 

@@ -12,9 +12,9 @@ use sim_core::expert::Expert;
 use sim_core::math::Vec2;
 use sim_core::scenario::Scenario;
 
-use crate::drive::parse_size;
-use crate::record::write_png;
-use crate::routes::town_by_name_or_file;
+use crate::eval::routes::town_by_name_or_file;
+use crate::tools::drive::parse_size;
+use crate::tools::record::write_png;
 
 #[derive(Debug, Args)]
 pub struct PictureArgs {

@@ -10,9 +10,9 @@ use agent::config::RunConfig;
 use anyhow::Result;
 use sim_core::town::Town;
 
-use super::run::{Agent, Driver};
-use super::suite::{Suite, SuiteAgentReport, SuiteOptions, evaluate_suite};
-use crate::greedy::{CheckpointInfo, GreedyAgent};
+use crate::eval::greedy::{CheckpointInfo, GreedyAgent};
+use crate::eval::lockstep::{Agent, Driver};
+use crate::eval::suite::{Suite, SuiteAgentReport, SuiteOptions, evaluate_suite};
 
 /// Route types completed in at least this share of their runs count as mastered.
 pub const MASTERED_SHARE: f64 = 0.5;
@@ -67,7 +67,7 @@ impl PeriodicScore {
     }
 }
 
-fn completed(runs: &[super::score::RunScore]) -> usize {
+fn completed(runs: &[crate::eval::score::RunScore]) -> usize {
     runs.iter().filter(|r| r.route_completion >= 1.0).count()
 }
 

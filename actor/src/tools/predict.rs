@@ -15,7 +15,7 @@ use sim_core::env::{Env, PATH_FEATURES};
 use sim_core::expert::Expert;
 use sim_core::scenario::{EvalRoute, Scenario};
 
-use crate::greedy::{GreedyAgent, load_checkpoint, q_values};
+use crate::eval::greedy::{GreedyAgent, load_checkpoint, q_values};
 
 #[derive(Debug, Args)]
 #[command(group = clap::ArgGroup::new("observation").required(true).args(["route", "frame"]))]
@@ -141,7 +141,7 @@ fn observe_route(agent: &GreedyAgent, name: &str, step: u32, seed: u64, save: Op
         }
     }
     if let Some(path) = save {
-        crate::record::write_png(path, env.image())?;
+        crate::tools::record::write_png(path, env.image())?;
     }
     Ok(Observed {
         image: env.image().data.clone(),
@@ -228,11 +228,11 @@ mod tests {
         let shape = cfg.net_shape();
         let frame = dir.path().join("f.png");
         let img = |w: u32, h: u32| sim_core::camera::Image { width: w, height: h, channels: 1, data: vec![7; (w * h) as usize] };
-        crate::record::write_png(&frame, &img(shape.width as u32 + 1, shape.height as u32)).unwrap();
+        crate::tools::record::write_png(&frame, &img(shape.width as u32 + 1, shape.height as u32)).unwrap();
         let e = observe_frame(&agent, &frame, &args(dir.path(), &frame, Some(1.0))).err().unwrap().to_string();
         assert!(e.contains("f.png") && e.contains(&format!("camera is {}x{}", shape.width, shape.height)), "{e}");
 
-        crate::record::write_png(&frame, &img(shape.width as u32, shape.height as u32)).unwrap();
+        crate::tools::record::write_png(&frame, &img(shape.width as u32, shape.height as u32)).unwrap();
         let e = observe_frame(&agent, &frame, &args(dir.path(), &frame, None)).err().unwrap().to_string();
         assert!(e.contains("--d (m) is an input of this hybrid checkpoint"), "{e}");
         let ok = observe_frame(&agent, &frame, &args(dir.path(), &frame, Some(2.0))).unwrap();

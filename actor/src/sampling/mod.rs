@@ -1,16 +1,21 @@
 //! `actor --learner ADDR`: one actor process. It registers with the learner (retrying with
-//! exponential backoff and jitter), starts the stepping thread (`stepping.rs`: N environments,
+//! exponential backoff and jitter), starts the stepping thread (`stepper.rs`: N environments,
 //! one batched forward pass, ε-greedy) and streams its steps in batches. Steps go to a bounded
-//! outbox (`link.rs`) that a sender task drains, new weights are picked up between steps, and a
+//! outbox (`outbox.rs`) that a sender task drains, new weights are picked up between steps, and a
 //! lost or frozen learner only means buffering, counting what overflowed, and reconnecting; the
 //! one wait is for a learner that is there and taking batches but behind the replay ratio
 //! (`Link::wait_for_room`). SIGINT/SIGTERM: stop stepping, flush what can be sent within
 //! [`FLUSH_DEADLINE`] (even to a frozen learner), say how many steps could not be sent, exit 0.
 //!
-//! Batches are cut below the learner's `max_message_bytes` and `max_batch_steps` (`split.rs`). A
+//! Batches are cut below the learner's `max_message_bytes` and `max_batch_steps` (`batch_split.rs`). A
 //! refusal is logged with the learner's reason (ERROR for a batch it will never take, which is
 //! dropped and counted; WARN otherwise), and every failed stream is followed by a wait that grows
 //! from 0.5 s to 30 s (±25 %) until a batch is acknowledged again: never a tight reconnect loop.
+
+pub mod batch_split;
+pub mod outbox;
+pub mod stepper;
+pub mod town;
 
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -28,9 +33,9 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use sim_core::config::EnvConfig;
 
-use crate::link::{Link, Outbox};
-use crate::split::{Limits, fits, split};
-use crate::stepping::step_loop;
+use crate::sampling::batch_split::{Limits, fits, split};
+use crate::sampling::outbox::{Link, Outbox};
+use crate::sampling::stepper::step_loop;
 
 /// How long a stopping actor keeps trying to hand its buffered steps to the learner.
 pub const FLUSH_DEADLINE: Duration = Duration::from_secs(5);
@@ -164,7 +169,7 @@ pub async fn run(opts: ActorOptions) -> Result<()> {
     let run_cfg = RunConfig { env: env_cfg, agent: agent_cfg, ..RunConfig::default() };
     // Built once, before stepping: a map that does not arrive whole or does not build stops the
     // actor here, with the reason.
-    let town = crate::run_town::run_town(&run_cfg.env, &reg)?;
+    let town = crate::sampling::town::run_town(&run_cfg.env, &reg)?;
     tracing::info!(town = %town.map.name, lanes = town.map.lanes.len(), map_file = %reg.map_name, map_hash = %format!("{:016x}", reg.map_hash), "driving the run's town");
 
     // The stepping thread: environments and inference.

@@ -16,7 +16,7 @@ use sim_core::env::Env;
 use sim_core::scenario::Scenario;
 use sim_core::town::Town;
 
-use crate::link::Link;
+use crate::sampling::outbox::Link;
 
 /// The environments and the policy: runs until stop.
 #[allow(clippy::too_many_arguments)]

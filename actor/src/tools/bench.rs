@@ -10,7 +10,7 @@ use sim_core::env::Env;
 use sim_core::expert::Expert;
 use sim_core::scenario::Scenario;
 
-use crate::routes::load_town;
+use crate::eval::routes::load_town;
 
 #[derive(Debug, Subcommand)]
 pub enum BenchCommand {
@@ -25,7 +25,7 @@ pub struct SimArgs {
     #[arg(long, default_value_t = 50)]
     pub vehicles: usize,
     /// Render the front camera each step at WIDTHxHEIGHT (gray), e.g. 84x84.
-    #[arg(long, value_name = "WxH", value_parser = crate::drive::parse_size)]
+    #[arg(long, value_name = "WxH", value_parser = crate::tools::drive::parse_size)]
     pub camera: Option<(u32, u32)>,
     /// Steps to time.
     #[arg(long, default_value_t = 200_000)]

@@ -7,10 +7,10 @@ use sim_core::camera::{BirdsEye, BirdsEyeConfig, CameraConfig};
 use sim_core::config::EnvConfig;
 use sim_core::env::Env;
 
-use crate::episode::Episode;
-use crate::policy::Policy;
-use crate::record::RunRecorder;
-use crate::routes::{load_town, parse_routes};
+use crate::eval::episode::Episode;
+use crate::eval::policy::Policy;
+use crate::eval::routes::{load_town, parse_routes};
+use crate::tools::record::RunRecorder;
 
 #[derive(Debug, Args)]
 pub struct DriveArgs {
@@ -98,7 +98,7 @@ pub fn run(args: &DriveArgs) -> Result<()> {
     let mut checkpoint = match args.policy.as_str() {
         "expert" | "random" => None,
         path => {
-            let agent = crate::greedy::load_checkpoint(std::path::Path::new(path))
+            let agent = crate::eval::greedy::load_checkpoint(std::path::Path::new(path))
                 .with_context(|| format!("--policy `{path}` is neither `expert`, `random` nor a checkpoint"))?;
             cfg.camera.clone_from(&agent.cfg.env.camera);
             Some(agent)
@@ -126,7 +126,7 @@ pub fn run(args: &DriveArgs) -> Result<()> {
                 }
                 let action = match (&mut policy, &mut checkpoint) {
                     (Some(p), _) => p.act(&env),
-                    (None, Some(agent)) => crate::greedy::greedy_action(agent, &env),
+                    (None, Some(agent)) => crate::eval::greedy::greedy_action(agent, &env),
                     (None, None) => unreachable!("a named policy or a checkpoint"),
                 };
                 let r = env.step(action)?;

@@ -12,10 +12,10 @@ use sim_core::env::Env;
 use sim_core::scenario::Scenario;
 use sim_core::vehicle::Action;
 
-use crate::episode::Episode;
+use crate::eval::episode::Episode;
+use crate::eval::greedy::{EPSILON, GreedyAgent, greedy_actions};
+use crate::eval::policy::Policy;
 use crate::eval::report::{AgentReport, Report, RouteResult};
-use crate::greedy::{EPSILON, GreedyAgent, greedy_actions};
-use crate::policy::Policy;
 
 /// A policy under evaluation.
 #[derive(Debug)]
@@ -31,6 +31,20 @@ pub enum Driver {
     ModelBased(Policy),
     /// A Q-network from a checkpoint, greedy.
     Greedy(Box<GreedyAgent>),
+}
+
+impl Driver {
+    /// The actions for the runs `live` of `envs`, chosen in lockstep: the planner for each run, or
+    /// the network for all of them in one forward pass.
+    pub fn actions(&mut self, envs: &[Env], live: &[usize]) -> Vec<Action> {
+        match self {
+            Driver::ModelBased(policy) => live.iter().map(|&k| policy.act(&envs[k])).collect(),
+            Driver::Greedy(agent) => {
+                let refs: Vec<&Env> = live.iter().map(|&k| &envs[k]).collect();
+                greedy_actions(agent, &refs).into_iter().map(|a| agent.actions[a as usize]).collect()
+            }
+        }
+    }
 }
 
 /// The environment every agent is evaluated in: the `paper` preset's, scored with the paper's
@@ -140,13 +154,7 @@ fn drive_route(driver: &mut Driver, envs: &mut [Env], seed: u64, scenario: Scena
         if live.is_empty() {
             return Ok(episodes);
         }
-        let actions: Vec<Action> = match driver {
-            Driver::ModelBased(policy) => live.iter().map(|&k| policy.act(&envs[k])).collect(),
-            Driver::Greedy(agent) => {
-                let refs: Vec<&Env> = live.iter().map(|&k| &envs[k]).collect();
-                greedy_actions(agent, &refs).into_iter().map(|a| agent.actions[a as usize]).collect()
-            }
-        };
+        let actions = driver.actions(envs, &live);
         for (&k, action) in live.iter().zip(actions) {
             let r = envs[k].step(action)?;
             episodes[k].record(&r);

@@ -61,7 +61,7 @@ mod tests {
 
     #[test]
     fn the_sent_content_is_built_in_the_format_its_name_says_and_checked() {
-        let xodr = include_str!("../../sim-core/tests/data/opendrive/straight_500m.xodr");
+        let xodr = include_str!("../../../sim-core/tests/data/opendrive/straight_500m.xodr");
         let town = run_town(&with_map("/only/on/the/learner/straight_500m.xodr"), &sent("straight_500m.xodr", xodr)).unwrap();
         assert_eq!(town.map.lanes.len(), Map::from_opendrive(xodr).unwrap().lanes.len());
         let text = run_town(&with_map("mine.map"), &sent("mine.map", sim_core::map::DEFAULT_TOWN)).unwrap();
