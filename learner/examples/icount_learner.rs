@@ -31,6 +31,9 @@ use learner::training::dqn::{Batch, Dqn};
 use prost::Message;
 use sim_core::env::PATH_FEATURES;
 
+#[path = "../../benches/icount.rs"]
+mod icount;
+
 /// The benches: name, what one iteration is.
 const BENCHES: &[(&str, &str)] = &[
     ("forward_b1_48x48", "one forward pass, batch 1, hybrid-tuned network (48x48 gray), 1 thread"),
@@ -255,32 +258,10 @@ fn status(calls: u64) -> anyhow::Result<u64> {
     Ok(calls)
 }
 
-/// The x86 feature class this process runs (what `gemm` and glibc dispatch on).
-fn cpu_class() -> &'static str {
-    #[cfg(target_arch = "x86_64")]
-    {
-        if std::arch::is_x86_feature_detected!("avx512f") {
-            "x86_64-avx512"
-        } else if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma") {
-            "x86_64-avx2-fma"
-        } else {
-            "x86_64-baseline"
-        }
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    {
-        std::env::consts::ARCH
-    }
-}
-
 fn main() -> anyhow::Result<()> {
     let args: Vec<String> = std::env::args().skip(1).collect();
     match args.iter().map(String::as_str).collect::<Vec<_>>().as_slice() {
-        ["list"] => {
-            for (name, what) in BENCHES {
-                println!("{name}\t{what}");
-            }
-        }
+        ["list"] => icount::list(BENCHES),
         ["run", name] => {
             let iterations = match *name {
                 "forward_b1_48x48" => forward(1, 2),
@@ -294,7 +275,7 @@ fn main() -> anyhow::Result<()> {
                     anyhow::bail!("unknown bench `{other}`: expected one of {}", names.join(", "));
                 }
             };
-            println!("{{\"bench\":\"{name}\",\"iterations\":{iterations},\"cpu_class\":\"{}\"}}", cpu_class());
+            icount::report(name, iterations);
         }
         _ => anyhow::bail!("usage: icount_learner list | icount_learner run NAME"),
     }
