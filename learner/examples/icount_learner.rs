@@ -16,13 +16,12 @@
 use std::collections::VecDeque;
 use std::hint::black_box;
 use std::io::Write;
-use std::sync::{Condvar, Mutex, RwLock};
-use std::time::Instant;
+use std::sync::Mutex;
 
 use agent::checkpoint::Counters;
 use agent::config::RunConfig;
 use agent::fastnet::{Inference, Params};
-use learner::state::{ActorRecord, EpisodeOutcome, PublishedWeights, Shared, TrainStats};
+use learner::state::{ActorRecord, EpisodeOutcome, PublishedWeights, Shared, SharedStart, TrainStats};
 use learner::storage::replay::{Replay, ReplayConfig, StepRecord};
 use learner::storage::replay_log::format;
 use learner::storage::versions::VersionLease;
@@ -221,35 +220,21 @@ fn status(calls: u64) -> anyhow::Result<u64> {
     let episodes: VecDeque<EpisodeOutcome> =
         (0..100).map(|i| EpisodeOutcome { episode_return: f64::from(i) / 10.0, arrived: i % 3 == 0, collided: i % 7 == 0 }).collect();
     let counters = Counters { run_id: "icount".into(), learner_step: 100, env_steps: 10_000, ..Counters::default() };
-    let shared = Shared {
-        run_id: counters.run_id.clone(),
-        cfg: cfg.clone(),
+    let mut shared = Shared::new(SharedStart {
+        cfg,
         map: None,
-        started: Instant::now(),
-        shape,
-        frame_bytes: frame,
-        replay: Mutex::new(replay),
-        counters: Mutex::new(counters),
-        weights: RwLock::new(PublishedWeights { version: 4, bytes: Default::default() }),
-        actors: Mutex::new(actors),
-        recent_episodes: Mutex::new(episodes),
-        stats: Mutex::new(TrainStats { loss: Some(0.1), mean_q: Some(1.0), ..TrainStats::default() }),
+        replay,
+        counters,
+        weights: PublishedWeights { version: 4, bytes: Default::default() },
         metrics: MetricsLog::open(dir.path())?,
-        ratio_session: Mutex::new(None),
-        ratio_baseline: Mutex::new(None),
-        data_arrived: (Mutex::new(()), Condvar::new()),
-        shutdown: Default::default(),
-        elapsed_before: 0.0,
-        resumed: false,
         log: None,
-        versions: Mutex::new(VersionLease::open(dir.path(), 0)?),
-        registrations: Default::default(),
-        refused: Default::default(),
-        warned_peers: Default::default(),
-        failure: tokio::sync::watch::Sender::new(None),
-        checkpoint_error: Mutex::new(None),
-        last_refusal: Mutex::new(None),
-    };
+        versions: VersionLease::open(dir.path(), 0)?,
+        ratio_session: None,
+        resumed: false,
+    });
+    shared.actors = Mutex::new(actors);
+    shared.recent_episodes = Mutex::new(episodes);
+    shared.stats = Mutex::new(TrainStats { loss: Some(0.1), mean_q: Some(1.0), ..TrainStats::default() });
     for _ in 0..calls {
         icount_measured(&mut || {
             black_box(learner::service::status(&shared).encode_to_vec());
