@@ -85,7 +85,7 @@ run() {
     "$@"
 }
 if [[ "$build" == 1 ]]; then
-    run cargo build --release --locked -p actor -p learner-cli
+    build_release
 fi
 mkdir -p "$runs_dir"
 
@@ -93,14 +93,7 @@ for v in "${variants[@]}"; do
     IFS='|' read -r name preset extra what <<<"$v"
     printf '%s\n' "${wanted[@]}" | grep -qx -- "$name" || continue
     cfg="$runs_dir/$name.toml"
-    {
-        echo "# Ablation variant \`$name\`: $what."
-        echo "preset = \"$preset\""
-        if [[ -n "$extra" ]]; then
-            echo
-            printf '%b\n' "$extra"
-        fi
-    } >"$cfg"
+    preset_config "Ablation variant \`$name\`: $what." "$preset" "$extra" >"$cfg"
     echo "== training $name for up to $minutes min ($runs_dir/$name)" >&2
     run "$bin/actor" train --config "$cfg" --run-dir "$runs_dir/$name" --seed "$seed" --max-minutes "$minutes" \
         --actors "$actors" --envs "$envs"

@@ -59,3 +59,67 @@ agents_of() {
         exit 2
     fi
 }
+
+# wanted NAME: whether the script's --agents (the comma-separated names in `$only`) asks for NAME;
+# an empty `$only` asks for every agent.
+wanted() {
+    [[ -z "$only" ]] && return 0
+    [[ ",$only," == *",$1,"* ]]
+}
+
+# preset_config HEADER PRESET EXTRA: prints a run's configuration file: the comment HEADER, the
+# preset, and EXTRA (TOML lines, `\n` for a line break) when there is any.
+preset_config() {
+    echo "# $1"
+    echo "preset = \"$2\""
+    if [[ -n "$3" ]]; then
+        echo
+        printf '%b\n' "$3"
+    fi
+}
+
+# build_release: builds the programs the experiments run (`actor`, `learner`) in release, saying so.
+build_release() {
+    echo "+ cargo build --release --locked -p actor -p learner-cli" >&2
+    cargo build --release --locked -p actor -p learner-cli
+}
+
+# run_done NAME SEED OUT: whether the run of NAME with SEED is kept already (OUT/run.json exists),
+# saying so.
+run_done() {
+    [[ -f "$3/run.json" ]] || return 1
+    echo "== $1 seed $2: done ($3/run.json)" >&2
+}
+
+# session_begin: notes a training session's start for keep_run_args: `started` (UTC),
+# `load_before` (the 1, 5 and 15 min load averages) and `session_t0` (epoch seconds).
+session_begin() {
+    started=$(date -u +%Y-%m-%dT%H:%M:%SZ)
+    load_before=$(cut -d' ' -f1-3 /proc/loadavg)
+    session_t0=$(date +%s)
+}
+
+# session_end: notes the session's length, `session_secs`, since session_begin.
+session_end() {
+    session_secs=$(( $(date +%s) - session_t0 ))
+}
+
+# keep_run_args ARRAY DIR OUT NAME PRESET SEED BUDGET: fills ARRAY with the flags of `keep-run`
+# (scripts/results.py, scripts/hazard_results.py) that keep run DIR in OUT: the agent, its seed and
+# env-step budget, the session session_begin and session_end measured, and this checkout's commit.
+keep_run_args() {
+    local -n flags="$1"
+    flags=(--run-dir "$2" --out "$3" --name "$4" --preset "$5" --seed "$6" --env-steps-budget "$7"
+        --started "$started" --load-before "$load_before" --session-secs "$session_secs"
+        --commit "$(git rev-parse --short HEAD 2>/dev/null || echo unknown)")
+}
+
+# evaluate_towns ACTOR DIR NAME SEED RUNS OUT: `actor eval` of run DIR's last checkpoint on the
+# training town and the held-out one, RUNS runs per route, into OUT/eval-TOWN.json.
+evaluate_towns() {
+    local town
+    for town in default_town held_out_town; do
+        echo "== $3 seed $4: evaluating on $town ($5 runs per route)" >&2
+        "$1" eval --checkpoint "$2" --name "$3" --town "$town" --runs "$5" --seed 0 --json-out "$6/eval-$town.json" >/dev/null
+    done
+}

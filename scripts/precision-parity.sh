@@ -48,25 +48,16 @@ run_root=${run_root#/}
 for seed in $(seq 1 "$seeds"); do
     for p in "${wanted[@]}"; do
         name="hybrid-tuned-$p" dir="runs/$run_root/$p/seed$seed" out="$out_root/$p/seed$seed"
-        if [[ -f "$out/run.json" ]]; then
-            echo "== $name seed $seed: done ($out/run.json)" >&2
-            continue
-        fi
+        run_done "$name" "$seed" "$out" && continue
         mkdir -p "$dir" "$out"
         printf '# README'"'"'s agent in %s arithmetic (scripts/precision-parity.sh).\npreset = "hybrid-tuned"\n\n[agent]\nprecision = "%s"\n' "$p" "$p" >"$out/config.toml"
-        started=$(date -u +%Y-%m-%dT%H:%M:%SZ)
-        load_before=$(cut -d' ' -f1-3 /proc/loadavg)
-        t0=$(date +%s)
+        session_begin
         echo "== $name seed $seed: training to $env_steps env steps ($dir)" >&2
         "$actor" train --config "$out/config.toml" --run-dir "$dir" --seed "$seed" --max-env-steps "$env_steps" --eval-every 1
-        session_secs=$(( $(date +%s) - t0 ))
-        for town in default_town held_out_town; do
-            echo "== $name seed $seed: evaluating on $town (5 runs per route)" >&2
-            "$actor" eval --checkpoint "$dir" --name "$name" --town "$town" --runs 5 --seed 0 --json-out "$out/eval-$town.json" >/dev/null
-        done
-        python3 scripts/results.py keep-run --run-dir "$dir" --out "$out" --name "$name" --preset hybrid-tuned \
-            --seed "$seed" --env-steps-budget "$env_steps" --started "$started" --load-before "$load_before" \
-            --session-secs "$session_secs" --commit "$(git rev-parse --short HEAD 2>/dev/null || echo unknown)"
+        session_end
+        evaluate_towns "$actor" "$dir" "$name" "$seed" 5 "$out"
+        keep_run_args kept "$dir" "$out" "$name" hybrid-tuned "$seed" "$env_steps"
+        python3 scripts/results.py keep-run "${kept[@]}"
     done
 done
 python3 - "$out_root" <<'PY'

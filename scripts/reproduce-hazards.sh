@@ -140,27 +140,16 @@ bin="${CARGO_TARGET_DIR:-target}/release"
 actor="$bin/actor"
 results="experiments/hazards"
 if [[ "$build" == 1 && "$report_only" == 0 ]]; then
-    echo "+ cargo build --release --locked -p actor -p learner-cli" >&2
-    cargo build --release --locked -p actor -p learner-cli
+    build_release
 fi
 mkdir -p "$runs_dir" "$results"
-
-wanted() {
-    [[ -z "$only" ]] && return 0
-    [[ ",$only," == *",$1,"* ]]
-}
 
 # config_for NAME PRESET EXTRA RATE FILE: the run's configuration: the preset, the agent's lines,
 # and the hazard rate.
 config_for() {
     local name="$1" preset="$2" extra="$3" rate="$4" file="$5"
     {
-        echo "# $name: the \`$preset\` preset$([[ -n "$extra" ]] && echo " with the lines below"), trained with hazards in $rate of its episodes."
-        echo "preset = \"$preset\""
-        if [[ -n "$extra" ]]; then
-            echo
-            printf '%b\n' "$extra"
-        fi
+        preset_config "$name: the \`$preset\` preset$([[ -n "$extra" ]] && echo " with the lines below"), trained with hazards in $rate of its episodes." "$preset" "$extra"
         echo
         echo "[env.hazards]"
         echo "rate = $rate"
@@ -188,27 +177,19 @@ evaluate() {
 train_and_evaluate() {
     local name="$1" preset="$2" extra="$3" rate="$4" seed="$5" budget="$6"
     local dir="$runs_dir/$name/seed$seed" out="$results/$name/seed$seed"
-    if [[ -f "$out/run.json" ]]; then
-        echo "== $name seed $seed: done ($out/run.json)" >&2
-        return
-    fi
+    run_done "$name" "$seed" "$out" && return
     mkdir -p "$dir" "$out"
     local cfg="$out/config.toml"
     [[ -f "$cfg" ]] || config_for "$name" "$preset" "$extra" "$rate" "$cfg"
-    local started load_before t0
-    started=$(date -u +%Y-%m-%dT%H:%M:%SZ)
-    load_before=$(cut -d' ' -f1-3 /proc/loadavg)
-    t0=$(date +%s)
+    session_begin
     echo "== $name seed $seed: training to $budget env steps, hazard rate $rate (run directory $dir)" >&2
     echo "+ $actor train --config $cfg --run-dir $dir --seed $seed --max-env-steps $budget --eval-every $eval_every" >&2
     "$actor" train --config "$cfg" --run-dir "$dir" --seed "$seed" --max-env-steps "$budget" --eval-every "$eval_every"
-    local session_secs=$(( $(date +%s) - t0 ))
+    session_end
     evaluate "$dir" "$out"
-    python3 scripts/hazard_results.py keep-run --run-dir "$dir" --out "$out" --name "$name" --preset "$preset" \
-        --seed "$seed" --rate "$rate" --env-steps-budget "$budget" --started "$started" \
-        --load-before "$load_before" --session-secs "$session_secs" \
-        --commit "$(git rev-parse --short HEAD 2>/dev/null || echo unknown)" \
-        ${started_from:+--started-from "$started_from"}
+    local -a kept
+    keep_run_args kept "$dir" "$out" "$name" "$preset" "$seed" "$budget"
+    python3 scripts/hazard_results.py keep-run "${kept[@]}" --rate "$rate" ${started_from:+--started-from "$started_from"}
 }
 
 if [[ "$report_only" == 0 ]]; then

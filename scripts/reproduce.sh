@@ -143,16 +143,9 @@ actor="$bin/actor"
 learner="$bin/learner"
 results="$data_dir/results"
 if [[ "$build" == 1 && "$report_only" == 0 ]]; then
-    echo "+ cargo build --release --locked -p actor -p learner" >&2
-    cargo build --release --locked -p actor -p learner-cli
+    build_release
 fi
 mkdir -p "$runs_dir" "$results" "$out_dir/figures"
-
-# wanted NAME: whether --agents asks for NAME (or did not choose).
-wanted() {
-    [[ -z "$only" ]] && return 0
-    [[ ",$only," == *",$1,"* ]]
-}
 
 # config_for NAME PRESET EXTRA FILE: writes the run's configuration file.
 config_for() {
@@ -168,46 +161,29 @@ config_for() {
         fi
         extra="$extra\n\n[env.camera]\nwidth = 24\nheight = 24"
     fi
-    {
-        echo "# $name: the \`$preset\` preset$([[ -n "$extra" ]] && echo " with the lines below")."
-        echo "preset = \"$preset\""
-        if [[ -n "$extra" ]]; then
-            echo
-            printf '%b\n' "$extra"
-        fi
-    } >"$file"
+    preset_config "$name: the \`$preset\` preset$([[ -n "$extra" ]] && echo " with the lines below")." "$preset" "$extra" >"$file"
 }
 
 # train_and_evaluate NAME PRESET EXTRA SEED: one run, skipped when its run.json exists.
 train_and_evaluate() {
     local name="$1" preset="$2" extra="$3" seed="$4"
     local dir="$runs_dir/$name/seed$seed" out="$results/$name/seed$seed"
-    if [[ -f "$out/run.json" ]]; then
-        echo "== $name seed $seed: done ($out/run.json)" >&2
-        return
-    fi
+    run_done "$name" "$seed" "$out" && return
     mkdir -p "$dir" "$out"
     local cfg="$out/config.toml"
     [[ -f "$cfg" ]] || config_for "$name" "$preset" "$extra" "$cfg"
-    local started load_before t0
-    started=$(date -u +%Y-%m-%dT%H:%M:%SZ)
-    load_before=$(cut -d' ' -f1-3 /proc/loadavg)
-    t0=$(date +%s)
+    session_begin
     echo "== $name seed $seed: training to $env_steps env steps (run directory $dir)" >&2
     echo "+ $actor train --config $cfg --run-dir $dir --seed $seed --max-env-steps $env_steps --eval-every $eval_every" >&2
     # The actors and environments of README's command (actor train's defaults, 1 × 4), so that the
     # minutes to competence are what a user of that command sees.
     "$actor" train --config "$cfg" --run-dir "$dir" --seed "$seed" --max-env-steps "$env_steps" \
         --eval-every "$eval_every"
-    local session_secs=$(( $(date +%s) - t0 ))
-    for town in default_town held_out_town; do
-        echo "== $name seed $seed: evaluating on $town ($runs runs per route)" >&2
-        "$actor" eval --checkpoint "$dir" --name "$name" --town "$town" --runs "$runs" --seed 0 \
-            --json-out "$out/eval-$town.json" >/dev/null
-    done
-    python3 scripts/results.py keep-run --run-dir "$dir" --out "$out" --name "$name" --preset "$preset" \
-        --seed "$seed" --env-steps-budget "$env_steps" --started "$started" --load-before "$load_before" \
-        --session-secs "$session_secs" --commit "$(git rev-parse --short HEAD 2>/dev/null || echo unknown)"
+    session_end
+    evaluate_towns "$actor" "$dir" "$name" "$seed" "$runs" "$out"
+    local -a kept
+    keep_run_args kept "$dir" "$out" "$name" "$preset" "$seed" "$env_steps"
+    python3 scripts/results.py keep-run "${kept[@]}"
 }
 
 if [[ "$report_only" == 0 ]]; then

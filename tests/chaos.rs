@@ -70,7 +70,7 @@ fn main() -> ExitCode {
     };
     let minutes: f64 = flag("--minutes", "CHAOS_MINUTES").map_or(3.0, |m| m.parse().expect("--minutes N"));
     let seed: u64 = flag("--seed", "CHAOS_SEED").map_or(1, |s| s.parse().expect("--seed S"));
-    let rt = tokio::runtime::Builder::new_multi_thread().worker_threads(2).enable_all().build().unwrap();
+    let rt = proto::program::runtime().unwrap();
     match rt.block_on(run(minutes, seed)) {
         Ok(summary) => {
             println!("{summary}");
@@ -86,17 +86,14 @@ fn main() -> ExitCode {
 
 /// The learner process: `learner serve` on the configuration in `CHAOS_CONFIG`.
 fn learner_process() -> ExitCode {
-    tracing_subscriber::fmt()
-        .with_writer(std::io::stderr)
-        .with_ansi(false)
-        .with_env_filter(tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "info".into()))
-        .init();
+    // stderr is learner.log here: no colour.
+    proto::program::init_logging();
     let opts = learner::serve::ServeOptions {
         config: std::env::var_os("CHAOS_CONFIG").map(PathBuf::from),
         resume: std::env::var_os("CHAOS_RESUME").is_some(),
         ..Default::default()
     };
-    let rt = tokio::runtime::Builder::new_multi_thread().worker_threads(2).enable_all().build().unwrap();
+    let rt = proto::program::runtime().unwrap();
     match rt.block_on(learner::serve::serve(opts)) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {

@@ -27,8 +27,8 @@ use crate::shape::NetShape;
 #[serde(default, deny_unknown_fields)]
 pub struct RunConfig {
     /// A named preset the file starts from (`paper`, `end-to-end`, `hybrid-tuned`,
-    /// `end-to-end-tuned`); the file's other values override it, table by table (default: none,
-    /// the built-in defaults).
+    /// `end-to-end-tuned`); the file's other values override it, table by table; without one, the
+    /// built-in defaults.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub preset: Option<String>,
     /// The simulated world: the environment every actor runs.
@@ -43,77 +43,77 @@ pub struct RunConfig {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct AgentConfig {
-    /// Discrete actions (default `paper6`, the paper code's six).
+    /// Discrete actions. The default is the paper code's six.
     pub action_set: ActionSet,
-    /// Filters of each of the three convolution layers (default 64, the paper's).
+    /// Filters of each of the three convolution layers. The default is the paper's.
     pub conv_filters: usize,
-    /// Units of each of the two hidden fully connected layers (default 256, the paper's).
+    /// Units of each of the two hidden fully connected layers. The default is the paper's.
     pub hidden: usize,
-    /// Arithmetic of the wide convolutions and, in training, fc1: `auto` (bf16 on AMX where the
-    /// CPU has it, else f32; default), `f32`, or `bf16` (on AMX, else on AVX512-BF16, which loses
-    /// to f32 on Intel's cores and wins on AMD Zen 4, docs/PERFORMANCE.md#bf16; refused without
-    /// either). Results differ between f32 and bf16 (bf16 keeps 8 significant bits) and between the
-    /// two bf16 kernels (their sums run in other orders); each is bit-identical run to run.
+    /// Arithmetic of the wide convolutions and, in training, fc1: `auto` (bf16 on AMX where the CPU
+    /// has it, else f32), `f32`, or `bf16` (on AMX, else on AVX512-BF16, which loses to f32 on
+    /// Intel's cores and wins on AMD Zen 4, docs/PERFORMANCE.md#bf16; refused without either).
+    /// Results differ between f32 and bf16 (bf16 keeps 8 significant bits) and between the two bf16
+    /// kernels (their sums run in other orders); each is bit-identical run to run.
     pub precision: crate::fastnet::Precision,
-    /// Discount γ (default 0.99).
+    /// Discount γ.
     pub gamma: f32,
-    /// Adam learning rate (default 2.5e-4).
+    /// Adam learning rate.
     pub learning_rate: f64,
-    /// Transitions per update (default 32).
+    /// Transitions per update.
     pub batch_size: usize,
-    /// Replay capacity, transitions (default 100 000).
+    /// Replay capacity, transitions.
     pub replay_capacity: usize,
-    /// Replay memory cap, bytes, frames included (default 2 GiB).
+    /// Replay memory cap, bytes, frames included.
     pub replay_max_bytes: u64,
-    /// Transitions stored before training starts (default 1 000).
+    /// Transitions stored before training starts.
     pub min_replay: usize,
-    /// Samples trained per transition inserted (default 0.25: one batch of 32 per 128 steps).
+    /// Samples trained per transition inserted. 0.25 trains one batch of 32 per 128 steps.
     pub replay_ratio: f32,
-    /// Updates between target-network copies (default 1 000).
+    /// Updates between target-network copies.
     pub target_update_period: u64,
     /// Target-network averaging (Polyak): after every update the target moves τ of the way to the
-    /// online network, θ' ← θ' + τ(θ − θ') (default 0: no averaging, the target is copied every
-    /// `target_update_period` updates, which then goes unused with τ > 0).
+    /// online network, θ' ← θ' + τ(θ − θ'). 0 is no averaging: the target is copied every
+    /// `target_update_period` updates, which then goes unused with τ > 0.
     pub target_tau: f32,
-    /// Gradients are rescaled to at most this global L2 norm (default 10).
+    /// Gradients are rescaled to at most this global L2 norm.
     pub grad_clip_norm: f32,
-    /// Huber loss threshold δ (default 1).
+    /// Huber loss threshold δ.
     pub huber_delta: f32,
     /// Extension switch: double DQN targets, the online network choosing the next action and the
-    /// target network valuing it (van Hasselt 2016) (default false: the paper's plain DQN).
+    /// target network valuing it (van Hasselt 2016). Off, the paper's plain DQN.
     pub double_dqn: bool,
-    /// Extension switch: prioritized replay, sampling by TD error (Schaul 2016) (default false:
-    /// uniform, the paper's).
+    /// Extension switch: prioritized replay, sampling by TD error (Schaul 2016). Off, uniform
+    /// sampling, the paper's.
     pub prioritized_replay: bool,
-    /// Prioritization exponent α of prioritized replay (default 0.6).
+    /// Prioritization exponent α of prioritized replay.
     pub priority_alpha: f32,
-    /// Importance-sampling exponent β of prioritized replay (default 0.4).
+    /// Importance-sampling exponent β of prioritized replay.
     pub priority_beta: f32,
-    /// Extension switch: n-step returns, 1..=32 (default 1, the paper's one-step targets).
+    /// Extension switch: n-step returns, 1..=32. 1 is the paper's one-step targets.
     pub n_step: usize,
     /// Extension switch, hybrid agent only: the network also sees the planner's path as signed
     /// numbers (lateral offset, heading angles to the route near and 25 m ahead; sim-core's
-    /// `Env::path_features`), not only the paper's unsigned d (default false).
+    /// `Env::path_features`), not only the paper's unsigned d.
     pub path_features: bool,
-    /// Exploration: ε decays linearly from `epsilon_start` (default 1.0) to `epsilon_end` over
-    /// `epsilon_decay_steps` environment steps.
+    /// Exploration rate at the start of the decay. ε decays linearly from `epsilon_start` to
+    /// `epsilon_end` over `epsilon_decay_steps` environment steps.
     pub epsilon_start: f32,
-    /// Exploration rate at the end of the decay (default 0.05).
+    /// Exploration rate at the end of the decay.
     pub epsilon_end: f32,
-    /// Environment steps of the decay (default 200 000).
+    /// Environment steps of the decay.
     pub epsilon_decay_steps: u64,
     /// Extension switch: per-actor ε (Ape-X: ε_i = ε^(1 + α·i/(N−1)), i the actor's index, N = `apex_actors`)
-    /// instead of the schedule (default false; ε = 0.4, α = 7, N = 8).
+    /// instead of the schedule, with `apex_epsilon` and `apex_alpha`.
     pub per_actor_epsilon: bool,
-    /// Ape-X base ε (default 0.4), with `per_actor_epsilon`.
+    /// Ape-X base ε, with `per_actor_epsilon`.
     pub apex_epsilon: f32,
-    /// Ape-X exponent α (default 7), with `per_actor_epsilon`.
+    /// Ape-X exponent α, with `per_actor_epsilon`.
     pub apex_alpha: f32,
-    /// Ape-X actor count N the exponents are spread over (default 8), with `per_actor_epsilon`.
+    /// Ape-X actor count N the exponents are spread over, with `per_actor_epsilon`.
     pub apex_actors: u32,
-    /// Updates between weight publications to actors (default 10).
+    /// Updates between weight publications to actors.
     pub publish_every_updates: u64,
-    /// Seed of network initialisation and replay sampling (default 0).
+    /// Seed of network initialisation and replay sampling.
     pub seed: u64,
 }
 
@@ -158,41 +158,40 @@ impl Default for AgentConfig {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct ServiceConfig {
-    /// gRPC listen address (default 127.0.0.1:50051).
+    /// gRPC listen address.
     pub listen: String,
-    /// Run directory: effective config, checkpoints, metrics (default `runs/default`).
+    /// Run directory: effective config, checkpoints, metrics.
     pub run_dir: String,
-    /// Seconds between checkpoints (default 300). A fresh run writes one before it serves, and
-    /// the first after training starts comes after at most 30 s; a failed write is retried with
-    /// backoff.
+    /// Seconds between checkpoints. A fresh run writes one before it serves, and the first after
+    /// training starts comes after at most 30 s; a failed write is retried with backoff.
     pub checkpoint_interval_secs: u64,
-    /// Largest gRPC message accepted or sent, bytes (default 64 MiB: a weights message is ~7 MB
-    /// for the paper network, a batch of 256 84×84 RGB transitions ~5.4 MB).
+    /// Largest gRPC message accepted or sent, bytes. A weights message is ~7 MB for the paper
+    /// network, a batch of 256 84×84 RGB transitions ~5.4 MB.
     pub max_message_bytes: usize,
-    /// An actor counts as connected while an experience stream of it is open and it was heard
-    /// from (a batch, or its weights poll every second) within this many seconds (default 10).
+    /// An actor counts as connected while an experience stream of it is open and it was heard from
+    /// (a batch, or its weights poll every second) within this many seconds.
     pub actor_timeout_secs: u64,
-    /// Episodes in the rolling statistics of the status (default 100).
+    /// Episodes in the rolling statistics of the status.
     pub stats_window: usize,
-    /// The most DQN updates the learner may owe the replay ratio before its experience streams
-    /// stop taking batches until it catches up (default 4): the ratio holds on a machine where
-    /// the learner is slower than the actors. 0 turns the hold off (the ratio is then a ceiling
-    /// that a slow learner falls below).
+    /// The most DQN updates the learner may owe the replay ratio before its experience streams stop
+    /// taking batches until it catches up. The ratio holds on a machine where the learner is slower
+    /// than the actors. 0 turns the hold off (the ratio is then a ceiling that a slow learner falls
+    /// below).
     pub update_lag_limit: u64,
-    /// `ack` (default): a batch is acknowledged only once it is in the replay log on disk
-    /// (`RUN_DIR/replay-log/`, synced by group commit), and `--resume` rebuilds the replay from
-    /// it. `none`: acknowledged once in memory; the replay starts empty after a restart.
+    /// `ack`: a batch is acknowledged only once it is in the replay log on disk
+    /// (`RUN_DIR/replay-log/`, synced by group commit), and `--resume` rebuilds the replay from it.
+    /// `none`: acknowledged once in memory; the replay starts empty after a restart.
     pub durability: Durability,
-    /// Bytes per replay log segment (default 64 MiB); segments whose transitions have all left
-    /// the replay are deleted, so the log holds about the replay's bytes plus one segment.
+    /// Bytes per replay log segment. Segments whose transitions have all left the replay are
+    /// deleted, so the log holds about the replay's bytes plus one segment.
     pub replay_log_segment_bytes: u64,
-    /// PEM certificate the learner serves TLS with, gRPC and metrics (default empty: plaintext);
-    /// with `tls_key`. Re-read on SIGHUP and when it changes (`--tls-cert`).
+    /// PEM certificate the learner serves TLS with, gRPC and metrics, with `tls_key`; empty serves
+    /// plaintext. Re-read on SIGHUP and when it changes (`--tls-cert`).
     pub tls_cert: String,
-    /// PEM private key of `tls_cert` (default empty; `--tls-key`).
+    /// PEM private key of `tls_cert` (`--tls-key`).
     pub tls_key: String,
-    /// PEM CA certificate(s) clients' certificates must chain to: mutual TLS (default empty:
-    /// clients need no certificate). Needs `tls_cert` (`--tls-client-ca`).
+    /// PEM CA certificate(s) clients' certificates must chain to: mutual TLS; empty: clients need
+    /// no certificate. Needs `tls_cert` (`--tls-client-ca`).
     pub tls_client_ca: String,
 }
 

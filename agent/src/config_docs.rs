@@ -1,8 +1,9 @@
 //! The configuration file with comments: `learner config` prints every field with what it means,
 //! its unit and its default, so that the file it writes explains itself. The descriptions are the
-//! fields' doc comments in `RunConfig` and the structs it gathers, copied into [`FIELD_DOCS`]
-//! (`config_docs/fields.rs`) by `agent/tests/sourcegen.rs`, which fails when the copy is stale or
-//! a field has no doc comment; a test here checks that every field printed has a description.
+//! fields' doc comments in `RunConfig` and the structs it gathers, each with its default from
+//! `RunConfig::default()`, written into [`FIELD_DOCS`] (`config_docs/fields.rs`) by
+//! `agent/tests/sourcegen.rs`, which fails when the file is stale, a field has no doc comment or a
+//! doc comment types a default; a test here checks that every field printed has a description.
 
 mod fields;
 

@@ -1,7 +1,9 @@
 //! Generates `agent/src/config_docs/fields.rs`, the descriptions `learner config` prints above
 //! every table and field, from the `///` doc comments of `RunConfig` and the structs it gathers
-//! (here and in sim-core), and fails when the committed file differs: the doc comments are the one
-//! source. Regenerate with `UPDATE_SOURCEGEN=1 cargo test -p agent --test sourcegen`.
+//! (here and in sim-core) and, for every field, its default from `RunConfig::default()`; fails when
+//! the committed file differs. The doc comments are the one source of what a field means and
+//! `impl Default` of what it defaults to: a doc comment that types a default is refused.
+//! Regenerate with `UPDATE_SOURCEGEN=1 cargo test -p agent --test sourcegen`.
 //! (rust-analyzer's "sourcegen" tests.)
 
 use std::collections::BTreeMap;
@@ -36,8 +38,9 @@ fn config_field_descriptions_are_generated_from_the_doc_comments() {
     for dir in [workspace.join("agent/src"), workspace.join("sim-core/src")] {
         collect(&dir, &mut structs);
     }
+    let defaults: toml::Table = toml::from_str(&agent::config::RunConfig::default().to_toml()).expect("the defaults read back");
     let mut entries = Vec::new();
-    walk(&structs, ROOT, "", &mut entries);
+    walk(&structs, &defaults, ROOT, "", &mut entries);
     let text = render(&entries);
     let path = agent.join(GENERATED);
     let committed = std::fs::read_to_string(&path).unwrap_or_default();
@@ -95,9 +98,9 @@ fn collect(dir: &Path, out: &mut BTreeMap<String, ConfigStruct>) {
     }
 }
 
-/// Appends (dotted path, description) for every field of `name` and, depth first, of the structs
-/// they hold.
-fn walk(structs: &BTreeMap<String, ConfigStruct>, name: &str, prefix: &str, out: &mut Vec<(String, String)>) {
+/// Appends (dotted path, description with the default) for every field of `name` and, depth
+/// first, of the structs they hold; `defaults` is `RunConfig::default()` as a TOML table.
+fn walk(structs: &BTreeMap<String, ConfigStruct>, defaults: &toml::Table, name: &str, prefix: &str, out: &mut Vec<(String, String)>) {
     let s = &structs[name];
     for field in &s.fields {
         let path = format!("{prefix}{}", field.key);
@@ -107,11 +110,84 @@ fn walk(structs: &BTreeMap<String, ConfigStruct>, name: &str, prefix: &str, out:
             field.key,
             s.file.display()
         );
-        out.push((path.clone(), field.doc.clone()));
-        if let Some(inner) = field.type_name.as_deref().filter(|t| structs.contains_key(*t)) {
-            walk(structs, inner, &format!("{path}."), out);
+        assert!(
+            !field.doc.contains("(default") && !field.doc.contains("default)"),
+            "`{name}::{}` ({}) types its default in its doc comment: drop it, the description of `{path}` gets it from \
+             `RunConfig::default()`",
+            field.key,
+            s.file.display()
+        );
+        let inner = field.type_name.as_deref().filter(|t| structs.contains_key(*t));
+        let doc = match default_text(&field.key, lookup(defaults, &path), inner.is_some()) {
+            Some(default) => with_default(&field.doc, &default),
+            None => field.doc.clone(),
+        };
+        out.push((path.clone(), doc));
+        if let Some(inner) = inner {
+            walk(structs, defaults, inner, &format!("{path}."), out);
         }
     }
+}
+
+/// The value at dotted `path` of `table`, if it is set.
+fn lookup<'a>(table: &'a toml::Table, path: &str) -> Option<&'a toml::Value> {
+    let (first, rest) = path.split_once('.').map_or((path, None), |(a, b)| (a, Some(b)));
+    let value = table.get(first)?;
+    match rest {
+        None => Some(value),
+        Some(rest) => lookup(value.as_table()?, rest),
+    }
+}
+
+/// How the description says the default of field `key` (`default 0.99`, `default: none`): none
+/// for a table other than a range (its fields say theirs).
+fn default_text(key: &str, value: Option<&toml::Value>, is_table: bool) -> Option<String> {
+    match value {
+        None if is_table => None,
+        None => Some("default: none".to_owned()),
+        Some(toml::Value::Table(t)) => match (t.get("min"), t.get("max")) {
+            (Some(min), Some(max)) if t.len() == 2 => Some(format!("default {}–{}", value_text(key, min), value_text(key, max))),
+            _ => None,
+        },
+        Some(v) => Some(format!("default {}", value_text(key, v))),
+    }
+}
+
+/// A value as a reader writes it: `64 MiB` for whole mebibytes of a `*_bytes` field, digits
+/// grouped by threes (`100 000`), `2.5e-4`, `−1`, strings in backticks, an empty one `empty`.
+fn value_text(key: &str, value: &toml::Value) -> String {
+    const MIB: i64 = 1 << 20;
+    match value {
+        toml::Value::String(s) if s.is_empty() => "empty".to_owned(),
+        toml::Value::String(s) => format!("`{s}`"),
+        toml::Value::Integer(i) if key.ends_with("_bytes") && *i > 0 && i % (MIB << 10) == 0 => format!("{} GiB", i / (MIB << 10)),
+        toml::Value::Integer(i) if key.ends_with("_bytes") && *i > 0 && i % MIB == 0 => format!("{} MiB", i / MIB),
+        toml::Value::Integer(i) => {
+            let digits = i.unsigned_abs().to_string();
+            let mut grouped = String::from(if *i < 0 { "−" } else { "" });
+            for (n, c) in digits.chars().enumerate() {
+                if n > 0 && (digits.len() - n) % 3 == 0 {
+                    grouped.push(' ');
+                }
+                grouped.push(c);
+            }
+            grouped
+        }
+        toml::Value::Float(f) => {
+            let magnitude = if *f != 0.0 && f.abs() < 1e-3 { format!("{:e}", f.abs()) } else { format!("{}", f.abs()) };
+            if *f < 0.0 { format!("−{magnitude}") } else { magnitude }
+        }
+        toml::Value::Boolean(b) => b.to_string(),
+        toml::Value::Array(items) if items.is_empty() => "none".to_owned(),
+        toml::Value::Array(items) => items.iter().map(|v| value_text(key, v)).collect::<Vec<_>>().join(", "),
+        other => other.to_string(),
+    }
+}
+
+/// `doc` with ` (DEFAULT)` at the end of its first sentence.
+fn with_default(doc: &str, default: &str) -> String {
+    let end = doc.find(". ").unwrap_or_else(|| doc.strip_suffix('.').map_or(doc.len(), str::len));
+    format!("{} ({default}){}", &doc[..end], &doc[end..])
 }
 
 fn render(entries: &[(String, String)]) -> String {

@@ -16,13 +16,12 @@
 use std::collections::VecDeque;
 use std::hint::black_box;
 use std::io::Write;
-use std::sync::{Condvar, Mutex, RwLock};
-use std::time::Instant;
+use std::sync::Mutex;
 
 use agent::checkpoint::Counters;
 use agent::config::RunConfig;
 use agent::fastnet::{Inference, Params};
-use learner::shared_state::{ActorRecord, EpisodeOutcome, PublishedWeights, Shared, TrainStats};
+use learner::shared_state::{ActorRecord, EpisodeOutcome, PublishedWeights, Shared, SharedStart, TrainStats};
 use learner::storage::replay::{Replay, ReplayConfig, StepRecord};
 use learner::storage::replay_log::format;
 use learner::storage::versions::VersionLease;
@@ -30,6 +29,9 @@ use learner::telemetry::metrics_log::MetricsLog;
 use learner::training::dqn::{Batch, Dqn};
 use prost::Message;
 use sim_core::env::PATH_FEATURES;
+
+#[path = "../../benches/icount.rs"]
+mod icount;
 
 /// The benches: name, what one iteration is.
 const BENCHES: &[(&str, &str)] = &[
@@ -218,35 +220,21 @@ fn status(calls: u64) -> anyhow::Result<u64> {
     let episodes: VecDeque<EpisodeOutcome> =
         (0..100).map(|i| EpisodeOutcome { episode_return: f64::from(i) / 10.0, arrived: i % 3 == 0, collided: i % 7 == 0 }).collect();
     let counters = Counters { run_id: "icount".into(), learner_step: 100, env_steps: 10_000, ..Counters::default() };
-    let shared = Shared {
-        run_id: counters.run_id.clone(),
-        cfg: cfg.clone(),
+    let mut shared = Shared::new(SharedStart {
+        cfg,
         map: None,
-        started: Instant::now(),
-        shape,
-        frame_bytes: frame,
-        replay: Mutex::new(replay),
-        counters: Mutex::new(counters),
-        weights: RwLock::new(PublishedWeights { version: 4, bytes: Default::default() }),
-        actors: Mutex::new(actors),
-        recent_episodes: Mutex::new(episodes),
-        stats: Mutex::new(TrainStats { loss: Some(0.1), mean_q: Some(1.0), ..TrainStats::default() }),
+        replay,
+        counters,
+        weights: PublishedWeights { version: 4, bytes: Default::default() },
         metrics: MetricsLog::open(dir.path())?,
-        ratio_session: Mutex::new(None),
-        ratio_baseline: Mutex::new(None),
-        data_arrived: (Mutex::new(()), Condvar::new()),
-        shutdown: Default::default(),
-        elapsed_before: 0.0,
-        resumed: false,
         log: None,
-        versions: Mutex::new(VersionLease::open(dir.path(), 0)?),
-        registrations: Default::default(),
-        refused: Default::default(),
-        warned_peers: Default::default(),
-        failure: tokio::sync::watch::Sender::new(None),
-        checkpoint_error: Mutex::new(None),
-        last_refusal: Mutex::new(None),
-    };
+        versions: VersionLease::open(dir.path(), 0)?,
+        ratio_session: None,
+        resumed: false,
+    });
+    shared.actors = Mutex::new(actors);
+    shared.recent_episodes = Mutex::new(episodes);
+    shared.stats = Mutex::new(TrainStats { loss: Some(0.1), mean_q: Some(1.0), ..TrainStats::default() });
     for _ in 0..calls {
         icount_measured(&mut || {
             black_box(learner::service::status(&shared).encode_to_vec());
@@ -255,32 +243,10 @@ fn status(calls: u64) -> anyhow::Result<u64> {
     Ok(calls)
 }
 
-/// The x86 feature class this process runs (what `gemm` and glibc dispatch on).
-fn cpu_class() -> &'static str {
-    #[cfg(target_arch = "x86_64")]
-    {
-        if std::arch::is_x86_feature_detected!("avx512f") {
-            "x86_64-avx512"
-        } else if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma") {
-            "x86_64-avx2-fma"
-        } else {
-            "x86_64-baseline"
-        }
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    {
-        std::env::consts::ARCH
-    }
-}
-
 fn main() -> anyhow::Result<()> {
     let args: Vec<String> = std::env::args().skip(1).collect();
     match args.iter().map(String::as_str).collect::<Vec<_>>().as_slice() {
-        ["list"] => {
-            for (name, what) in BENCHES {
-                println!("{name}\t{what}");
-            }
-        }
+        ["list"] => icount::list(BENCHES),
         ["run", name] => {
             let iterations = match *name {
                 "forward_b1_48x48" => forward(1, 2),
@@ -294,7 +260,7 @@ fn main() -> anyhow::Result<()> {
                     anyhow::bail!("unknown bench `{other}`: expected one of {}", names.join(", "));
                 }
             };
-            println!("{{\"bench\":\"{name}\",\"iterations\":{iterations},\"cpu_class\":\"{}\"}}", cpu_class());
+            icount::report(name, iterations);
         }
         _ => anyhow::bail!("usage: icount_learner list | icount_learner run NAME"),
     }

@@ -172,10 +172,65 @@ pub struct Shared {
     pub last_refusal: Mutex<Option<(Instant, String)>>,
 }
 
+/// What a learner starts [`Shared`] from: what it loaded or opened; everything else starts empty
+/// ([`Shared::new`]).
+#[derive(Debug)]
+pub struct SharedStart {
+    pub cfg: RunConfig,
+    pub map: Option<crate::storage::run_map::RunMap>,
+    pub replay: Replay,
+    /// The run's counters (its id and the seconds of earlier sessions come from them).
+    pub counters: Counters,
+    pub weights: PublishedWeights,
+    pub metrics: MetricsLog,
+    pub log: Option<ReplayLog>,
+    pub versions: VersionLease,
+    /// See [`Shared::ratio_session`].
+    pub ratio_session: Option<(u64, u64)>,
+    pub resumed: bool,
+}
+
 /// How long a refusal counts as recent in Status.
 pub const RECENT_REFUSAL: Duration = Duration::from_secs(30);
 
 impl Shared {
+    /// The state of a learner that starts now from `start`: no actors, episodes, statistics,
+    /// refusals or failure yet.
+    #[must_use]
+    pub fn new(start: SharedStart) -> Self {
+        let SharedStart { cfg, map, replay, counters, weights, metrics, log, versions, ratio_session, resumed } = start;
+        let shape = cfg.net_shape();
+        Self {
+            run_id: counters.run_id.clone(),
+            elapsed_before: counters.elapsed_secs,
+            cfg,
+            map,
+            started: Instant::now(),
+            shape,
+            frame_bytes: shape.height * shape.width * shape.channels,
+            replay: Mutex::new(replay),
+            counters: Mutex::new(counters),
+            weights: RwLock::new(weights),
+            actors: Mutex::new(Vec::new()),
+            recent_episodes: Mutex::new(VecDeque::new()),
+            stats: Mutex::new(TrainStats::default()),
+            metrics,
+            ratio_session: Mutex::new(ratio_session),
+            ratio_baseline: Mutex::new(None),
+            data_arrived: (Mutex::new(()), Condvar::new()),
+            shutdown: AtomicBool::new(false),
+            resumed,
+            log,
+            versions: Mutex::new(versions),
+            registrations: AtomicU64::new(0),
+            refused: RefusedStreams::default(),
+            warned_peers: Mutex::new(HashSet::new()),
+            failure: tokio::sync::watch::Sender::new(None),
+            checkpoint_error: Mutex::new(None),
+            last_refusal: Mutex::new(None),
+        }
+    }
+
     /// Seconds since the run began, across resumes.
     #[must_use]
     pub fn run_secs(&self) -> f64 {

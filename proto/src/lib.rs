@@ -1,13 +1,15 @@
 //! The wire of the actor–learner protocol (gRPC, package `hybriddrive.v1`): the types generated
 //! from `proto/hybriddrive/v1/learner.proto` ([`v1`]), and what both ends share to speak it —
 //! connection settings, the bearer token and connecting ([`client`]), plaintext or TLS to an
-//! address ([`target`]), failures told apart ([`failure`]), raw bytes as messages for tests and probes ([`raw`]), the clients' shared flags ([`cli`]), and stopping on a signal
-//! ([`shutdown`]). No domain types: both ends convert to their own at the edge.
+//! address ([`target`]), failures told apart ([`failure`]), raw bytes as messages for tests and probes ([`raw`]), the clients' shared flags ([`cli`]), how the programs start (logging and runtime,
+//! [`program`]) and stopping on a signal ([`shutdown`]). No domain types: both ends convert to their own at the edge.
 
 #[cfg(feature = "cli")]
 pub mod cli;
 pub mod client;
 pub mod failure;
+#[cfg(feature = "cli")]
+pub mod program;
 pub mod raw;
 pub mod shutdown;
 pub mod target;

@@ -1,21 +1,27 @@
-"""Type stubs of the extension module ``hybrid_drive._core`` (python/src/, Rust)."""
+"""Type stubs of the extension module ``hybrid_drive._core`` (python/src/, Rust: the signatures' one home),
+checked against the built module by ``mypy.stubtest`` in ``cargo xtask python``."""
 
 from os import PathLike
-from typing import Any, Optional, Sequence, Union
+from typing import Any, Optional, Sequence, Union, final
 
 import numpy as np
 import numpy.typing as npt
+from typing_extensions import Self
+
+__all__ = ["SimConfig", "Sim", "VecSim", "reference_rollout", "rust_loop", "ROUTES", "COLLISION_KINDS"]
 
 ROUTES: list[str]
 COLLISION_KINDS: list[str]
 
+@final
 class SimConfig:
-    def __init__(
-        self,
+    def __new__(
+        cls,
         *,
         map: Union[str, PathLike[str], None] = None,
         route: str = "random",
-        camera: Optional[tuple[int, int]] = (84, 84),
+        # Its default (python/src/config.rs) is no literal that PyO3 can show: `...` at runtime.
+        camera: Optional[tuple[int, int]] = ...,
         rgb: bool = False,
         variant: str = "hybrid",
         vehicles: Optional[int] = None,
@@ -24,7 +30,8 @@ class SimConfig:
         action_set: str = "paper6",
         config: Optional[str] = None,
         birdseye_size: int = 256,
-    ) -> None: ...
+        hazards: Optional[float] = None,
+    ) -> Self: ...
     @property
     def camera_shape(self) -> Optional[tuple[int, int, int]]: ...
     @property
@@ -47,8 +54,9 @@ class SimConfig:
     def time_limit(self) -> int: ...
     def config_json(self) -> str: ...
 
+@final
 class Sim:
-    def __init__(self, cfg: SimConfig, seed: int = 0) -> None: ...
+    def __new__(cls, cfg: SimConfig, seed: int = 0) -> Self: ...
     def reset(self, seed: Optional[int] = None, route: Optional[str] = None) -> tuple[dict[str, np.ndarray], dict[str, Any]]: ...
     def step(self, action: Any) -> tuple[dict[str, np.ndarray], float, bool, bool, dict[str, Any]]: ...
     def render(self) -> npt.NDArray[np.uint8]: ...
@@ -60,8 +68,9 @@ class Sim:
     @property
     def route(self) -> str: ...
 
+@final
 class VecSim:
-    def __init__(self, cfg: SimConfig, num_envs: int, num_threads: Optional[int] = None, seed: int = 0) -> None: ...
+    def __new__(cls, cfg: SimConfig, num_envs: int, num_threads: Optional[int] = None, seed: int = 0) -> Self: ...
     @property
     def num_envs(self) -> int: ...
     @property

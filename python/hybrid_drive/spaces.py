@@ -9,7 +9,7 @@ from __future__ import annotations
 import json
 import math
 import os
-from typing import Any, Optional, Tuple, Union
+from typing import Any, Optional
 
 import numpy as np
 from gymnasium import spaces
@@ -17,40 +17,23 @@ from gymnasium import spaces
 from hybrid_drive._core import SimConfig
 
 
-def sim_config(
-    *,
-    map: Union[str, "os.PathLike[str]", None] = None,
-    route: str = "random",
-    camera: Optional[Tuple[int, int]] = (84, 84),
-    rgb: bool = False,
-    variant: str = "hybrid",
-    vehicles: Optional[int] = None,
-    parked_cars: Optional[int] = None,
-    path_features: bool = False,
-    action_set: str = "paper6",
-    config: Optional[dict] = None,
-    birdseye_size: int = 256,
-    hazards: Optional[float] = None,
-) -> SimConfig:
-    """Checks the environment's keyword arguments (see :class:`hybrid_drive.HybridDriveEnv`)."""
+def sim_config(**kwargs: Any) -> SimConfig:
+    """Checks the environment's keyword arguments (see :class:`hybrid_drive.HybridDriveEnv`): those
+    of :class:`hybrid_drive._core.SimConfig`, whose signature (names and defaults) is their one home,
+    with the Python forms it does not take turned into its own: ``camera`` any pair of numbers,
+    ``map`` any path-like, ``config`` a dict (passed as JSON), ``hazards`` any number."""
+    camera = kwargs.get("camera")
     if camera is not None:
         if len(camera) != 2:
             raise ValueError(f"camera={camera!r}: expected (width, height) in pixels, or None")
-        camera = (int(camera[0]), int(camera[1]))
-    return SimConfig(
-        map=os.fspath(map) if map is not None else None,
-        route=route,
-        camera=camera,
-        rgb=rgb,
-        variant=variant,
-        vehicles=vehicles,
-        parked_cars=parked_cars,
-        path_features=path_features,
-        action_set=action_set,
-        config=json.dumps(config) if config is not None else None,
-        birdseye_size=birdseye_size,
-        hazards=None if hazards is None else float(hazards),
-    )
+        kwargs["camera"] = (int(camera[0]), int(camera[1]))
+    if kwargs.get("map") is not None:
+        kwargs["map"] = os.fspath(kwargs["map"])
+    if kwargs.get("config") is not None:
+        kwargs["config"] = json.dumps(kwargs["config"])
+    if kwargs.get("hazards") is not None:
+        kwargs["hazards"] = float(kwargs["hazards"])
+    return SimConfig(**kwargs)
 
 
 def observation_space(cfg: SimConfig) -> spaces.Dict:

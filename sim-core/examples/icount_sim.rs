@@ -19,6 +19,9 @@ use sim_core::expert::Expert;
 use sim_core::scenario::{EvalRoute, Scenario};
 use sim_core::town::Town;
 
+#[path = "../../benches/icount.rs"]
+mod icount;
+
 /// The benches: name, what one iteration is.
 const BENCHES: &[(&str, &str)] = &[
     ("env_step_camera_84x84", "one env step, default config (20 cars, 12 parked, 84x84 gray camera)"),
@@ -88,35 +91,13 @@ fn camera_render() -> u64 {
     RENDERS
 }
 
-/// The x86 feature class this process runs (what `gemm` and glibc dispatch on).
-fn cpu_class() -> &'static str {
-    #[cfg(target_arch = "x86_64")]
-    {
-        if std::arch::is_x86_feature_detected!("avx512f") {
-            "x86_64-avx512"
-        } else if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma") {
-            "x86_64-avx2-fma"
-        } else {
-            "x86_64-baseline"
-        }
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    {
-        std::env::consts::ARCH
-    }
-}
-
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
     match args.iter().map(String::as_str).collect::<Vec<_>>().as_slice() {
-        ["list"] => {
-            for (name, what) in BENCHES {
-                println!("{name}\t{what}");
-            }
-        }
+        ["list"] => icount::list(BENCHES),
         ["run", name] => {
             let iterations = run(name);
-            println!("{{\"bench\":\"{name}\",\"iterations\":{iterations},\"cpu_class\":\"{}\"}}", cpu_class());
+            icount::report(name, iterations);
         }
         ["time", name, repeats] => {
             // The same work, timed natively: the median over `repeats` runs of its time per iteration.

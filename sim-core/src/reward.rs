@@ -13,21 +13,21 @@ use crate::config::variant::Variant;
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct RewardConfig {
-    /// Reward of a collision step, r_c (default −1).
+    /// Reward of a collision step, r_c.
     pub collision: f32,
-    /// Reward of the arrival step (default 100).
+    /// Reward of the arrival step.
     pub arrival: f32,
-    /// Arrival radius ε around the destination, metres (default 5).
+    /// Arrival radius ε around the destination, metres.
     pub arrival_radius: f32,
-    /// Desired speed v0, km/h (default 50).
+    /// Desired speed v0, km/h.
     pub v0_kmh: f32,
-    /// Waypoint distance scale d0, metres (default 8).
+    /// Waypoint distance scale d0, metres.
     pub d0: f32,
-    /// Weight β_v of the speed term (default 1).
+    /// Weight β_v of the speed term.
     pub beta_v: f32,
-    /// Weight β_l of the progress term (default 1).
+    /// Weight β_l of the progress term.
     pub beta_l: f32,
-    /// Weight β_w of the waypoint term (default 1).
+    /// Weight β_w of the waypoint term.
     pub beta_w: f32,
     /// If set, the per-step shaped reward (not collision or arrival) is clipped to ±this.
     pub clip: Option<f32>,

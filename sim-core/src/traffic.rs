@@ -21,15 +21,15 @@ use crate::vehicle::VehicleParams;
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct IdmParams {
-    /// Maximum acceleration, m/s² (default 2.0).
+    /// Maximum acceleration, m/s².
     pub accel: f32,
-    /// Comfortable deceleration, m/s² (default 2.0).
+    /// Comfortable deceleration, m/s².
     pub comfort_decel: f32,
-    /// Hardest braking, m/s² (default 9.0).
+    /// Hardest braking, m/s².
     pub max_decel: f32,
-    /// Minimum bumper-to-bumper gap, metres (default 2.0).
+    /// Minimum bumper-to-bumper gap, metres.
     pub min_gap: f32,
-    /// Desired time headway, seconds (default 1.2).
+    /// Desired time headway, seconds.
     pub headway: f32,
 }
 

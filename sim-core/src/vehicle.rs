@@ -33,27 +33,26 @@ impl Action {
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct VehicleParams {
-    /// Body length, metres (default 4.5).
+    /// Body length, metres.
     pub length: f32,
-    /// Body width, metres (default 1.9).
+    /// Body width, metres.
     pub width: f32,
-    /// Distance between axles, metres (default 2.7).
+    /// Distance between axles, metres.
     pub wheelbase: f32,
-    /// Acceleration at full throttle from standstill, m/s² (default 3.5); falls linearly to 0 at
-    /// `max_speed`.
+    /// Acceleration at full throttle from standstill, m/s². It falls linearly to 0 at `max_speed`.
     pub max_accel: f32,
-    /// Deceleration at full brake, m/s² (default 8.0).
+    /// Deceleration at full brake, m/s².
     pub max_brake: f32,
-    /// Deceleration when coasting (rolling resistance and drag), m/s² (default 0.3).
+    /// Deceleration when coasting (rolling resistance and drag), m/s².
     pub coast_decel: f32,
-    /// Top speed, m/s (default 30).
+    /// Top speed, m/s.
     pub max_speed: f32,
-    /// Front-wheel angle at full lock when slow, radians (default 0.6).
+    /// Front-wheel angle at full lock when slow, radians.
     pub max_steer: f32,
-    /// Speed at which the usable lock has halved, m/s (default 10): steering is gentler when fast,
-    /// as in driving games and CARLA, so that a full-lock command is a lane change, not a spin.
+    /// Speed at which the usable lock has halved, m/s. Steering is gentler when fast, as in driving
+    /// games and CARLA, so that a full-lock command is a lane change, not a spin.
     pub steer_halving_speed: f32,
-    /// How fast the wheels turn toward the commanded angle, radians per second (default 2.0).
+    /// How fast the wheels turn toward the commanded angle, radians per second.
     pub steer_rate: f32,
 }
 

@@ -33,7 +33,8 @@ enum Step {
     Slow,
     /// Instruction counts of the hot paths (scripts/bench-check.sh; installs valgrind if missing).
     BenchCheck,
-    /// The Python binding: `pip install ./python` into target/python-venv, then pytest python/tests.
+    /// The Python binding: `pip install ./python` into target/python-venv, mypy's stubtest of its
+    /// type stub, then pytest python/tests.
     Python,
     /// tests/interop: third-party tools against the debug binaries (venv under target/).
     Interop,

@@ -53,8 +53,10 @@ pub fn bench_check(root: &Path) -> Result<()> {
 }
 
 /// The Python binding built and installed as a user would (`pip install ./python`, maturin
-/// building the crate in release with --locked), then its pytest suite. The venv lives in
-/// target/python-venv and is reused; pip fetches what it lacks from PyPI.
+/// building the crate in release with --locked), its type stub checked against the built module
+/// (`mypy.stubtest hybrid_drive._core`: the stub follows python/src/config.rs's signatures), then
+/// its pytest suite. The venv lives in target/python-venv and is reused; pip fetches what it lacks
+/// from PyPI.
 pub fn python(root: &Path) -> Result<()> {
     let venv = root.join("target/python-venv");
     if !venv.join("bin/python").is_file() {
@@ -62,13 +64,14 @@ pub fn python(root: &Path) -> Result<()> {
     }
     let (pip, python) = (venv.join("bin/pip"), venv.join("bin/python"));
     Cmd::new(root, &pip)
-        .args(["install", "--quiet", "--disable-pip-version-check", "maturin>=1.9.4,<2", "gymnasium>=1.0", "numpy", "pytest"])
+        .args(["install", "--quiet", "--disable-pip-version-check", "maturin>=1.9.4,<2", "gymnasium>=1.0", "numpy", "pytest", "mypy"])
         .run()?;
     // Built with the maturin just installed (its PEP 517 hook runs `maturin` from PATH).
     Cmd::new(root, &pip)
         .args(["install", "--quiet", "--disable-pip-version-check", "--no-build-isolation", "--force-reinstall", "--no-deps", "./python"])
         .env("PATH", path_with(&venv.join("bin"))?)
         .run()?;
+    Cmd::new(root, &python).args(["-m", "mypy.stubtest", "hybrid_drive._core"]).run()?;
     Ok(Cmd::new(root, &python).args(["-m", "pytest", "-q", "python/tests"]).run()?)
 }
 

@@ -276,14 +276,9 @@ fn group_line(g: &learner_cli::plot::GroupSummary) -> String {
 }
 
 fn main() -> Result<()> {
-    tracing_subscriber::fmt()
-        .with_writer(std::io::stderr)
-        // Colour only on a terminal: logs redirected to files (actor-K.log) stay plain text.
-        .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
-        .with_env_filter(tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "info".into()))
-        .init();
+    proto::program::init_logging();
     let cli = Cli::parse();
-    let rt = tokio::runtime::Builder::new_multi_thread().worker_threads(2).enable_all().build()?;
+    let rt = proto::program::runtime()?;
     rt.block_on(async move {
         match cli.command {
             Command::Serve { config, listen, run_dir, resume, truncate_log, metrics_listen, auth_token_file, tls_cert, tls_key, tls_client_ca } => {

@@ -8,17 +8,16 @@
 //! fails, the learner reports it (log, Status, health NOT_SERVING), acknowledges nothing more,
 //! and `learner serve` exits non-zero: a supervisor restarts it with `--resume`.
 
-use std::collections::VecDeque;
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 use std::sync::atomic::Ordering;
-use std::sync::{Arc, Condvar, Mutex, RwLock};
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use anyhow::{Context, Result, bail};
 
 use crate::service::tls::ServerTls;
-use crate::shared_state::{PublishedWeights, Shared, TrainStats};
+use crate::shared_state::{PublishedWeights, Shared, SharedStart};
 use crate::storage::checkpoint;
 use crate::storage::replay::{Replay, ReplayConfig};
 use crate::storage::replay_log::OnDamage;
@@ -205,39 +204,21 @@ async fn start_with(opts: ServeOptions, train: Trainer) -> Result<Running> {
     let version = versions.next_version().with_context(|| format!("leasing weights versions in {}", run_dir.display()))?;
     let weights = PublishedWeights { version, bytes: Arc::new(agent::weights::to_safetensors(&dqn.online, "")?) };
     counters.weights_version = weights.version;
-    let elapsed_before = counters.elapsed_secs;
     // The replay ratio counts what arrives from now on, before the training thread is first
     // scheduled: a burst that beats it there is held too.
     let ratio_session = Some((counters.transitions_stored, dqn.updates));
-    let shared = Arc::new(Shared {
-        run_id: counters.run_id.clone(),
+    let shared = Arc::new(Shared::new(SharedStart {
         cfg: cfg.clone(),
         map,
-        started: Instant::now(),
-        shape,
-        frame_bytes,
-        replay: Mutex::new(replay),
-        counters: Mutex::new(counters),
-        weights: RwLock::new(weights),
-        actors: Mutex::new(Vec::new()),
-        recent_episodes: Mutex::new(VecDeque::new()),
-        stats: Mutex::new(TrainStats::default()),
+        replay,
+        counters,
+        weights,
         metrics: MetricsLog::open(&run_dir).with_context(|| format!("opening metrics files in {}", run_dir.display()))?,
-        ratio_session: Mutex::new(ratio_session),
-        ratio_baseline: Mutex::new(None),
-        data_arrived: (Mutex::new(()), Condvar::new()),
-        shutdown: Default::default(),
-        elapsed_before,
-        resumed: opts.resume,
         log,
-        versions: Mutex::new(versions),
-        registrations: Default::default(),
-        refused: Default::default(),
-        warned_peers: Default::default(),
-        failure: tokio::sync::watch::Sender::new(None),
-        checkpoint_error: Mutex::new(None),
-        last_refusal: Mutex::new(None),
-    });
+        versions,
+        ratio_session,
+        resumed: opts.resume,
+    }));
 
     // Training thread.
     let trainer = {

@@ -20,21 +20,21 @@ use crate::town::Town;
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct CameraConfig {
-    /// Image width, pixels (default 84).
+    /// Image width, pixels.
     pub width: u32,
-    /// Image height, pixels (default 84).
+    /// Image height, pixels.
     pub height: u32,
-    /// RGB (3 bytes per pixel) instead of gray (1 byte) (default false).
+    /// RGB (3 bytes per pixel) instead of gray (1 byte).
     pub rgb: bool,
-    /// Horizontal field of view, degrees (default 90).
+    /// Horizontal field of view, degrees.
     pub hfov_deg: f32,
-    /// Height of the lens above the ground, metres (default 1.6).
+    /// Height of the lens above the ground, metres.
     pub mount_height: f32,
-    /// Distance of the lens ahead of the vehicle's centre, metres (default 1.0).
+    /// Distance of the lens ahead of the vehicle's centre, metres.
     pub mount_forward: f32,
-    /// Downward tilt, degrees, realised as a lens shift (default 8).
+    /// Downward tilt, degrees, realised as a lens shift.
     pub pitch_deg: f32,
-    /// Nothing farther than this is drawn, metres (default 150).
+    /// Nothing farther than this is drawn, metres.
     pub max_distance: f32,
 }
 

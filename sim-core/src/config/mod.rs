@@ -28,22 +28,23 @@ pub struct EnvConfig {
     /// `hybrid` (the paper's agent: the network sees d, the reward has r_w) or `end_to_end`
     /// (camera and speed only, no r_w).
     pub variant: Variant,
-    /// The town to train on: `default_town` (default), `held_out_town` or a map file (text format
+    /// The town to train on: `default_town` when unset, `held_out_town` or a map file (text format
     /// or OpenDRIVE `.xodr`, relative to the learner's directory); the learner sends it to every
     /// actor.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub map: Option<String>,
-    /// Simulation step, seconds (default 0.1, the paper's 10 Hz).
+    /// Simulation step, seconds. The default is the paper's 10 Hz.
     pub dt: f32,
-    /// Spacing of the planner's waypoints along the route, metres (default 8, the paper's).
+    /// Spacing of the planner's waypoints along the route, metres. The default is the paper's.
     pub waypoint_spacing: f32,
-    /// Shortest random training route, metres (default 50).
+    /// Shortest random training route, metres.
     pub route_length_min: f32,
-    /// Longest random training route, metres (default 150).
+    /// Longest random training route, metres.
     pub route_length_max: f32,
-    /// Steps before a training episode is truncated (default 200).
+    /// Steps before a training episode is truncated.
     pub time_limit: u32,
-    /// Steps before an evaluation route is truncated (default 300: waiting at junctions takes time).
+    /// Steps before an evaluation route is truncated. Longer than `time_limit`: waiting at junctions
+    /// takes time.
     pub eval_time_limit: u32,
     /// The paper's reward: r = β_v·r_v + β_l·r_l + β_w·r_w per step, collision and arrival
     /// rewards at the end.
@@ -52,13 +53,13 @@ pub struct EnvConfig {
     pub traffic: TrafficConfig,
     /// The ego vehicle (kinematic bicycle model).
     pub vehicle: VehicleParams,
-    /// The front camera (default 84×84 gray; omit the table for none: no image is rendered).
+    /// The front camera (omit the table for none: no image is rendered).
     pub camera: Option<CameraConfig>,
     /// Hazards the planner does not know: stalled car, pedestrian crossing, cut-in, hard brake,
-    /// construction, opposite overtaker, junction runner (default: none).
+    /// construction, opposite overtaker, junction runner.
     pub hazards: HazardsConfig,
     /// The planner giving the waypoints (d, path features, the model-based driver): `astar` (the
-    /// global route, default) or `astar+avoid` (bent around perceived hazards and obstacles).
+    /// global route) or `astar+avoid` (bent around perceived hazards and obstacles).
     pub planner: PlannerKind,
 }
 
@@ -87,14 +88,14 @@ impl Default for EnvConfig {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct TrafficConfig {
-    /// Moving traffic cars (0 = empty roads; 20 = default; 60+ = dense on the default town).
+    /// Moving traffic cars (0 = empty roads; 60+ = dense on the default town).
     pub vehicles: usize,
-    /// Cars parked on the roads' parking shoulders (default 12).
+    /// Cars parked on the roads' parking shoulders.
     pub parked_cars: usize,
     /// The paper code's option: a parked car on the route, this many metres ahead of the start,
-    /// standing in the lane (default: none).
+    /// standing in the lane.
     pub parked_car_ahead: Option<f32>,
-    /// Traffic keeps at least this far from the ego vehicle when placed, metres (default 25).
+    /// Traffic keeps at least this far from the ego vehicle when placed, metres.
     pub spawn_clearance: f32,
     /// The Intelligent Driver Model of the traffic cars.
     pub idm: IdmParams,

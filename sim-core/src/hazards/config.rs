@@ -37,24 +37,23 @@ impl Range {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct HazardsConfig {
-    /// Probability that an episode gets a hazard, 0 to 1 (default 0: none).
+    /// Probability that an episode gets a hazard, 0 (none) to 1.
     pub rate: f32,
-    /// The kinds drawn from, uniformly (stalled_car, pedestrian_crossing, cut_in, hard_brake,
-    /// construction, opposite_overtaker, junction_runner; default all).
+    /// The kinds drawn from, uniformly.
     pub kinds: Vec<HazardKind>,
-    /// Route distance from the start to the hazard, metres (default 45–75).
+    /// Route distance from the start to the hazard, metres.
     pub distance: Range,
-    /// Seconds before the ego would reach a walker's crossing when it steps out (default 1.5–2.3).
+    /// Seconds before the ego would reach a walker's crossing when it steps out.
     pub trigger_time: Range,
-    /// Walking speed, m/s (default 1.3–1.8).
+    /// Walking speed, m/s.
     pub walker_speed: Range,
-    /// Length of a construction closure, metres (default 12–20).
+    /// Length of a construction closure, metres.
     pub closure_length: Range,
-    /// Seconds a hard-braking leader stands still before driving on (default 2–4).
+    /// Seconds a hard-braking leader stands still before driving on.
     pub stop_time: Range,
-    /// Bumper-to-bumper gap a cut-in leaves in front of the ego, metres (default 6–10).
+    /// Bumper-to-bumper gap a cut-in leaves in front of the ego, metres.
     pub cut_in_gap: Range,
-    /// Speed a junction runner crosses at, m/s (default 8–11).
+    /// Speed a junction runner crosses at, m/s.
     pub runner_speed: Range,
 }
 

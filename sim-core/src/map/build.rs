@@ -2,6 +2,7 @@
 //! conflicts, obstacles and the surface raster. Errors that only geometry reveals (a road that does
 //! not reach its end node, a road too short for its junctions) name the road's line and field.
 
+use super::connectors::{add_connector, conflict_sets};
 use super::format::{MapError, MapSpec, PieceSpec, RoadSpec};
 use super::surface::{Surface, SurfaceRaster};
 use super::{Junction, Lane, LaneId, LaneKind, Map, ObstacleKind, Overpass, Road, StaticObstacle, Turn};
@@ -14,8 +15,6 @@ const SAMPLE: f32 = 1.0;
 const END_TOLERANCE: f32 = 0.5;
 /// Junction area reaches this far beyond the widest road's half-width, metres.
 const JUNCTION_MARGIN: f32 = 2.0;
-/// Two connectors conflict when their centre lines come closer than this, metres.
-pub(super) const CONFLICT_DISTANCE: f32 = 3.2;
 /// Raster cell size, metres.
 pub(super) const RASTER_CELL: f32 = 0.25;
 
@@ -233,36 +232,13 @@ pub(super) fn build(spec: &MapSpec) -> Result<Map, MapError> {
                 };
                 for (from, to) in pairs {
                     let path = connector_path(&lanes[from].path, &lanes[to].path);
-                    lanes.push(Lane {
-                        kind: LaneKind::Connector { junction: jid, from, to, turn },
-                        path,
-                        width: lanes[from].width,
-                        speed_limit: lanes[from].speed_limit.min(lanes[to].speed_limit),
-                        successors: vec![to],
-                        left: None,
-                        right: None,
-                        ends_at_junction: None,
-                    });
-                    let c = lanes.len() - 1;
-                    lanes[from].successors.push(c);
-                    lanes[from].ends_at_junction = Some(jid);
-                    connectors.push(c);
+                    let (width, speed_limit) = (lanes[from].width, lanes[from].speed_limit.min(lanes[to].speed_limit));
+                    connectors.push(add_connector(&mut lanes, jid, (from, to), turn, path, width, speed_limit));
                 }
             }
         }
         let outline = convex_hull(list.iter().flat_map(|e| cross_section(&roads[e.road], e.at_start, 0.0)).collect());
-        let conflicts = connectors
-            .iter()
-            .enumerate()
-            .map(|(i, &a)| {
-                connectors
-                    .iter()
-                    .enumerate()
-                    .filter(|&(j, &b)| j != i && polyline_distance(&lanes[a].path, &lanes[b].path) < CONFLICT_DISTANCE)
-                    .map(|(j, _)| j)
-                    .collect()
-            })
-            .collect();
+        let conflicts = conflict_sets(&lanes, &connectors);
         junctions.push(Junction { centre: nodes[n].1, outline, connectors, conflicts });
     }
 
@@ -420,12 +396,6 @@ fn connector_path(a: &Polyline, b: &Polyline) -> Polyline {
         p0 * (u * u * u) + p1 * (3.0 * u * u * t) + p2 * (3.0 * u * t * t) + p3 * (t * t * t)
     });
     Polyline::new(pts).unwrap_or_else(|| Polyline::new([p0, p0 + t0 * 0.1]).expect("two distinct points"))
-}
-
-/// The smallest distance between the vertices of one polyline and the segments of the other.
-pub(super) fn polyline_distance(a: &Polyline, b: &Polyline) -> f32 {
-    let one_way = |x: &Polyline, y: &Polyline| x.points().iter().map(|&p| y.project(p).distance).fold(f32::INFINITY, f32::min);
-    one_way(a, b).min(one_way(b, a))
 }
 
 /// Convex hull (Andrew's monotone chain), counter-clockwise.

@@ -5,6 +5,7 @@
 //! format (`format.rs`) and builds the geometry (`build.rs`).
 
 mod build;
+mod connectors;
 pub mod format;
 mod load;
 pub mod opendrive;

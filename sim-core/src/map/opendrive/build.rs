@@ -8,7 +8,8 @@ use std::collections::{BTreeMap, BTreeSet};
 use super::error::OpenDriveError;
 use super::lanes::{SampledSection, sample};
 use super::parse::{Contact, Link, Network, Road as OdRoad};
-use crate::map::build::{CONFLICT_DISTANCE, MAX_RASTER_CELLS, RASTER_CELL, RASTER_LEVELS, convex_hull, polyline_distance};
+use crate::map::build::{MAX_RASTER_CELLS, RASTER_CELL, RASTER_LEVELS, convex_hull};
+use crate::map::connectors::{add_connector, conflict_sets};
 use crate::map::{Junction, Lane, LaneId, LaneKind, Map, MapWarning, Road, Surface, SurfaceRaster, Turn};
 use crate::math::Vec2;
 use crate::polyline::Polyline;
@@ -361,20 +362,7 @@ pub(super) fn build(net: Network) -> Result<Map, OpenDriveError> {
                 };
                 let speed = inner.iter().map(|&l| od_lanes[l].speed).fold(lanes[from].speed_limit.min(lanes[to].speed_limit), f32::min);
                 let width = inner.iter().map(|&l| od_lanes[l].width).sum::<f32>() / inner.len() as f32;
-                lanes.push(Lane {
-                    kind: LaneKind::Connector { junction: jid, from, to, turn },
-                    path,
-                    width,
-                    speed_limit: speed,
-                    successors: vec![to],
-                    left: None,
-                    right: None,
-                    ends_at_junction: None,
-                });
-                let c = lanes.len() - 1;
-                lanes[from].successors.push(c);
-                lanes[from].ends_at_junction = Some(jid);
-                connectors_of[jid].push(c);
+                connectors_of[jid].push(add_connector(&mut lanes, jid, (from, to), turn, path, width, speed));
             } else if chain.len() < MAX_CHAIN {
                 for &b in &next[last] {
                     if !chain.contains(&b) {
@@ -408,18 +396,7 @@ pub(super) fn build(net: Network) -> Result<Map, OpenDriveError> {
             })
             .collect();
         let centre = edge_pts.iter().fold(Vec2::ZERO, |a, &b| a + b) / edge_pts.len().max(1) as f32;
-        let conflicts = connectors
-            .iter()
-            .enumerate()
-            .map(|(i, &a)| {
-                connectors
-                    .iter()
-                    .enumerate()
-                    .filter(|&(k, &b)| k != i && polyline_distance(&lanes[a].path, &lanes[b].path) < CONFLICT_DISTANCE)
-                    .map(|(k, _)| k)
-                    .collect()
-            })
-            .collect();
+        let conflicts = conflict_sets(&lanes, connectors);
         junctions.push(Junction { centre, outline: convex_hull(edge_pts), connectors: connectors.clone(), conflicts });
     }
     for lane in &mut lanes {
