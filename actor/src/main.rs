@@ -80,16 +80,11 @@ enum Command {
 }
 
 fn main() -> Result<()> {
-    tracing_subscriber::fmt()
-        .with_writer(std::io::stderr)
-        // Colour only on a terminal: logs redirected to files (actor-K.log) stay plain text.
-        .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
-        .with_env_filter(tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "info".into()))
-        .init();
+    proto::program::init_logging();
     let cli = Cli::parse();
     match cli.command {
         Some(Command::Train(args)) => {
-            tokio::runtime::Builder::new_multi_thread().worker_threads(2).enable_all().build()?.block_on(runner::run(&args))
+            proto::program::runtime()?.block_on(runner::run(&args))
         }
         Some(Command::Drive(args)) => tools::drive::run(&args),
         Some(Command::Eval(args)) => eval::run(&args),
@@ -114,7 +109,7 @@ fn main() -> Result<()> {
                 ack_log: cli.ack_log,
                 exit_with_stdin: cli.exit_with_stdin,
             };
-            tokio::runtime::Builder::new_multi_thread().worker_threads(2).enable_all().build()?.block_on(sampling::run(opts))
+            proto::program::runtime()?.block_on(sampling::run(opts))
         }
     }
 }
