@@ -1,0 +1,4 @@
+//! learner/cli's integration tests, one program (one link) with a module per subject.
+
+mod plot;
+mod tls;

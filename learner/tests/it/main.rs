@@ -1,0 +1,8 @@
+//! learner's integration tests, one program (one link) with a module per subject.
+
+mod bounds;
+mod corridor;
+mod metrics;
+mod reflection;
+mod reliability;
+mod service;
