@@ -50,7 +50,7 @@ def keep_run(a):
     for name in ["eval.jsonl", "train.jsonl"]:
         if (run_dir / name).exists():
             shutil.copyfile(run_dir / name, out / name)
-    episodes, episodes_kept = main_results.keep_episodes(run_dir, out)
+    episodes = main_results.keep_curve(run_dir, out)
     # The baselines drive the same seeds in every evaluation: kept once, left out of the run's.
     for (suite, town), path in eval_files(out).items():
         ev = json.loads(path.read_text())
@@ -77,7 +77,6 @@ def keep_run(a):
         "learner_step": counters.get("last", {}).get("learner_step"),
         "best": counters.get("best"),
         "episodes": len(episodes),
-        "episodes_kept": episodes_kept,
         **main_results.how_it_ran(a, episodes, train),
     }
     if a.started_from:
@@ -310,7 +309,7 @@ def report(a):
                               for s, r in sorted(by_seed.items())}
     whole = json.loads(json_out.read_text()) if json_out.exists() else {}
     whole["hazards"] = data
-    json_out.write_text(json.dumps(whole, indent=1) + "\n")
+    main_results.write_json(json_out, whole)
     sections = tables(data)
     (out_dir / "figures").mkdir(parents=True, exist_ok=True)
     svg = kinds_figure(data)

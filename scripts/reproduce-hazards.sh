@@ -27,9 +27,9 @@
 #      "hazards" key of experiments/results.json, docs/figures/hazards-*.svg)
 #
 # Each run keeps what the tables need in experiments/hazards/AGENT/seedS/ (its evaluations, its
-# periodic evaluations, train.jsonl, its episodes thinned, a run.json). A run whose run.json exists
-# is done and skipped; a stopped training run resumes from its checkpoint in --runs-dir. Rerun the
-# same command to continue.
+# periodic evaluations, train.jsonl, its return curve in 400 points (curves.json), a run.json; the
+# full episodes.jsonl stays in --runs-dir). A run whose run.json exists is done and skipped; a
+# stopped training run resumes from its checkpoint in --runs-dir. Rerun the same command to continue.
 #
 # Usage: scripts/reproduce-hazards.sh [--seeds N] [--env-steps N] [--long-env-steps N] [--rates R,R]
 #            [--rate-search A,B] [--steady-seeds N] [--agents A,B] [--runs N] [--eval-every M] [--report-only]

@@ -5,11 +5,12 @@
 # table with bootstrap confidence intervals (docs/RESULTS.md), the raw numbers
 # (experiments/results.json) and the figures (docs/figures/).
 #
-# Each (agent, seed) run keeps what the results need in experiments/results/AGENT/seedS/ (its evaluations,
-# its periodic evaluations, its training curves thinned to at most 2,000 episodes, a run.json); a
-# run whose run.json exists is done and is skipped. So the script is resumable at two levels: a
-# stopped training run continues from its checkpoint in the runs directory to the same budget, and
-# a finished run is never trained again, even from a fresh clone (its results are committed).
+# Each (agent, seed) run keeps what the results need in experiments/results/AGENT/seedS/ (its
+# evaluations, its periodic evaluations, train.jsonl, its return curve in 400 points (curves.json),
+# a run.json; the full episodes.jsonl stays in the runs directory); a run whose run.json exists is
+# done and is skipped. So the script is resumable at two levels: a stopped training run continues
+# from its checkpoint in the runs directory to the same budget, and a finished run is never trained
+# again, even from a fresh clone (its results are committed).
 #
 # `--experiment hazards` runs the hazard experiment instead (scripts/reproduce-hazards.sh, which
 # takes the flags that follow it).

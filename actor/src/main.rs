@@ -2,25 +2,12 @@
 //! (`actor --learner ADDR`), evaluates checkpoints (`actor eval`), drives routes with the
 //! reference driver or a random policy, and benchmarks the simulator.
 
-mod bench;
-mod best;
-mod drive;
-mod episode;
 mod eval;
-mod greedy;
-mod link;
-mod picture;
-mod policy;
-mod predict;
-mod record;
-mod routes;
-mod run;
-mod run_town;
-mod split;
-mod stepping;
+mod runner;
+mod sampling;
 #[cfg(test)]
 mod testing;
-mod train;
+mod tools;
 
 use anyhow::Result;
 use clap::{Parser, Subcommand};
@@ -74,22 +61,22 @@ struct Cli {
 enum Command {
     /// Train: a learner here and local actor processes, with live progress (Ctrl-C: checkpoint
     /// and exit; the same command resumes).
-    Train(train::TrainArgs),
+    Train(runner::TrainArgs),
     /// Drive evaluation routes with a policy and report completions, collisions and returns.
-    Drive(drive::DriveArgs),
+    Drive(tools::drive::DriveArgs),
     /// Evaluate checkpoints greedily on the paper's seven routes beside the model-based baseline
     /// (the paper's Table I).
     Eval(eval::EvalArgs),
     /// A checkpoint's Q values for one observation (a route's step, or a frame with its scalars),
     /// with a summary of the network's inputs: for checking a checkpoint loaded elsewhere
     /// (docs/MODEL.md).
-    Predict(predict::PredictArgs),
+    Predict(tools::predict::PredictArgs),
     /// A town seen whole from above and through the front camera, as PNGs (to check a map by
     /// eye).
-    Picture(picture::PictureArgs),
+    Picture(tools::picture::PictureArgs),
     /// Benchmarks.
     #[command(subcommand)]
-    Bench(bench::BenchCommand),
+    Bench(tools::bench::BenchCommand),
 }
 
 fn main() -> Result<()> {
@@ -102,13 +89,13 @@ fn main() -> Result<()> {
     let cli = Cli::parse();
     match cli.command {
         Some(Command::Train(args)) => {
-            tokio::runtime::Builder::new_multi_thread().worker_threads(2).enable_all().build()?.block_on(train::run(&args))
+            tokio::runtime::Builder::new_multi_thread().worker_threads(2).enable_all().build()?.block_on(runner::run(&args))
         }
-        Some(Command::Drive(args)) => drive::run(&args),
+        Some(Command::Drive(args)) => tools::drive::run(&args),
         Some(Command::Eval(args)) => eval::run(&args),
-        Some(Command::Predict(args)) => predict::run(&args),
-        Some(Command::Picture(args)) => picture::run(&args),
-        Some(Command::Bench(cmd)) => bench::run(&cmd),
+        Some(Command::Predict(args)) => tools::predict::run(&args),
+        Some(Command::Picture(args)) => tools::picture::run(&args),
+        Some(Command::Bench(cmd)) => tools::bench::run(&cmd),
         None => {
             let Some(learner) = cli.learner else {
                 anyhow::bail!(
@@ -116,7 +103,7 @@ fn main() -> Result<()> {
                 );
             };
             let name = cli.name.unwrap_or_else(|| format!("{}-{}", hostname(), std::process::id()));
-            let opts = run::ActorOptions {
+            let opts = sampling::ActorOptions {
                 learner: proto::client::Target::new(&learner, cli.tls.files(), cli.auth.insecure_plaintext)?,
                 envs: cli.envs,
                 name,
@@ -127,7 +114,7 @@ fn main() -> Result<()> {
                 ack_log: cli.ack_log,
                 exit_with_stdin: cli.exit_with_stdin,
             };
-            tokio::runtime::Builder::new_multi_thread().worker_threads(2).enable_all().build()?.block_on(run::run(opts))
+            tokio::runtime::Builder::new_multi_thread().worker_threads(2).enable_all().build()?.block_on(sampling::run(opts))
         }
     }
 }

@@ -50,10 +50,10 @@ pub struct AgentConfig {
     /// Units of each of the two hidden fully connected layers (default 256, the paper's).
     pub hidden: usize,
     /// Arithmetic of the wide convolutions and, in training, fc1: `auto` (bf16 on AMX where the
-    /// CPU has it, else f32; default), `f32`, or `bf16` (on AMX, else on AVX512-BF16, which ran
-    /// slower than f32 on an Intel Xeon; refused without either). Results differ between f32 and
-    /// bf16 (bf16 keeps 8 significant bits) and between the two bf16 kernels (their sums run in
-    /// other orders); each is bit-identical run to run.
+    /// CPU has it, else f32; default), `f32`, or `bf16` (on AMX, else on AVX512-BF16, which loses
+    /// to f32 on Intel's cores and wins on AMD Zen 4, docs/PERFORMANCE.md#bf16; refused without
+    /// either). Results differ between f32 and bf16 (bf16 keeps 8 significant bits) and between the
+    /// two bf16 kernels (their sums run in other orders); each is bit-identical run to run.
     pub precision: crate::fastnet::Precision,
     /// Discount γ (default 0.99).
     pub gamma: f32,

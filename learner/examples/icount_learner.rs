@@ -11,7 +11,7 @@
 //!
 //! The network's benches are small (a few images, no warm-up call: a count is the same at every
 //! call, first or not, save the buffers' allocation): valgrind runs `gemm`'s FMA kernels through
-//! helper calls, ~20× slower than other code, so a batch-32 update would take minutes.
+//! helper calls, many times slower than other code, so a batch-32 update would take minutes.
 
 use std::collections::VecDeque;
 use std::hint::black_box;
@@ -22,7 +22,7 @@ use std::time::Instant;
 use agent::checkpoint::Counters;
 use agent::config::RunConfig;
 use agent::fastnet::{Inference, Params};
-use learner::state::{ActorRecord, EpisodeOutcome, PublishedWeights, Shared, TrainStats};
+use learner::shared_state::{ActorRecord, EpisodeOutcome, PublishedWeights, Shared, TrainStats};
 use learner::storage::replay::{Replay, ReplayConfig, StepRecord};
 use learner::storage::replay_log::format;
 use learner::storage::versions::VersionLease;

@@ -12,7 +12,7 @@
 
 pub mod serve;
 pub mod service;
-pub mod state;
+pub mod shared_state;
 pub mod storage;
 pub mod telemetry;
 pub mod training;

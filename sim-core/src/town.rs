@@ -65,8 +65,9 @@ impl Town {
     }
 
     /// Whether two connectors (lane ids) may not be used at the same time.
-    // `#[inline]`: the traffic asks it for every pair of requests at every junction, every step;
-    // a call each cost 670 instructions per step (docs/PERFORMANCE.md, "Instruction counts").
+    // `#[inline]`: the traffic asks it for every pair of requests at every junction, every step,
+    // and a call each showed in the env step's instruction count
+    // (experiments/performance/CHANGELOG.md, "the hazards' instructions").
     #[inline]
     #[must_use]
     pub fn connectors_conflict(&self, a: LaneId, b: LaneId) -> bool {

@@ -148,7 +148,8 @@ def test_keep_run_says_where_a_run_that_did_not_start_from_scratch_started(tmp_p
     (run_dir / "checkpoint").mkdir(parents=True)
     (run_dir / "checkpoint" / "state.json").write_text(json.dumps({"counters": {"env_steps": 1600000, "learner_step": 12500}}))
     (run_dir / "train.jsonl").write_text(json.dumps({"time_secs": 120.0}) + "\n")
-    (run_dir / "episodes.jsonl").write_text("".join(json.dumps({"episode_index": i, "arrived": True, "time_secs": i, "env_steps": i}) + "\n" for i in range(3)))
+    (run_dir / "episodes.jsonl").write_text("".join(json.dumps({"episode_index": i, "arrived": True, "time_secs": i, "env_steps": i, "return": 1.0})
+                                                    + "\n" for i in range(3)))
     for suite in hz.SUITES:
         for town in hz.TOWNS:
             write_eval(out, suite, town, [agent_report("model-based", {}), agent_report("last", {})])
@@ -157,6 +158,7 @@ def test_keep_run_says_where_a_run_that_did_not_start_from_scratch_started(tmp_p
               "session_secs": 120}
     hz.keep_run(type("A", (), {**common, "started_from": "scratch (runs/hazards/hz-hybrid-tuned/seed1 was gone)"}))
     kept = json.loads((out / "run.json").read_text())
-    assert kept["started_from"].startswith("scratch") and kept["env_steps"] == 1600000
+    assert kept["started_from"].startswith("scratch") and kept["env_steps"] == 1600000 and kept["episodes"] == 3
+    assert json.loads((out / "curves.json").read_text())["return"] == [1.0, 1.0, 1.0] and not (out / "episodes.jsonl").exists()
     hz.keep_run(type("A", (), {**common, "started_from": None}))
     assert "started_from" not in json.loads((out / "run.json").read_text()), "a run from scratch says nothing"

@@ -133,3 +133,29 @@ def test_training_completion_milestones_follow_the_progress_lines_window():
     m = results.completion_milestones(eps, shares=(0.2, 0.4, 0.6))
     assert m == {"0.2": [1.19, 1190], "0.4": [1.39, 1390]}
     assert results.completion_milestones(eps[:50]) == {}, "no window is full"
+
+
+def test_a_kept_curve_redraws_the_full_logs_moving_average(tmp_path):
+    # 1000 episodes kept as 400 points (blocks of 2 or 3): the episodes `learner plot` reads back
+    # have, at the end of every block, the time, env steps and running sum of the full log.
+    episodes = [{"episode_index": i + 1, "time_secs": 0.5 * i, "env_steps": 10 * i, "return": float(i % 7) - 2.0, "arrived": False}
+                for i in range(1000)]
+    run_dir, kept = tmp_path / "runs" / "seed1", tmp_path / "results" / "a" / "seed1"
+    run_dir.mkdir(parents=True)
+    kept.mkdir(parents=True)
+    (run_dir / "episodes.jsonl").write_text("".join(json.dumps(e) + "\n" for e in reversed(episodes)))
+    (run_dir / "train.jsonl").write_text(json.dumps({"time_secs": 10.0}) + "\n")
+    assert results.keep_curve(run_dir, kept) == results.read_jsonl(run_dir / "episodes.jsonl")
+    assert len((kept / "curves.json").read_text().splitlines()) == 1 and not (kept / "episodes.jsonl").exists()
+    (kept / "train.jsonl").write_text((run_dir / "train.jsonl").read_text())
+    d = results.plot_dir(kept, tmp_path / "plot")
+    assert (d / "train.jsonl").read_text() == (run_dir / "train.jsonl").read_text()
+    rebuilt = results.read_jsonl(d / "episodes.jsonl")
+    assert len(rebuilt) == 1000
+    assert set(rebuilt[0]) == {"time_secs", "episode_index", "actor_id", "env", "return", "steps", "arrived", "collision", "scenario",
+                               "learner_step", "env_steps"}, "every field of an episodes.jsonl line"
+    ends = [(i + 1) * 1000 // results.CURVE_POINTS for i in range(results.CURVE_POINTS)]
+    assert [(rebuilt[j - 1]["time_secs"], rebuilt[j - 1]["env_steps"]) for j in ends] == [(0.5 * (j - 1), 10 * (j - 1)) for j in ends]
+    for j in ends:
+        assert abs(sum(e["return"] for e in rebuilt[:j]) - sum(e["return"] for e in episodes[:j])) <= 0.0005 * j
+    assert results.return_curve(episodes[:3]) == {"episodes": 3, "time_secs": [0.0, 0.5, 1.0], "env_steps": [0, 10, 20], "return": [-2.0, -1.0, 0.0]}

@@ -55,30 +55,57 @@ fn agent_has_no_runtime_network_tensor_library_or_plotting() {
 
 #[test]
 fn the_learner_service_has_no_tools_plotting_or_candle() {
-    assert_never("learner", &["actor", "learner-cli", "plotters", "candle-core", "candle-nn", "rcgen", "clap"]);
+    assert_never("learner", &["actor", "learner-cli", "tonic-reflection", "plotters", "candle-core", "candle-nn", "rcgen", "clap"]);
 }
 
 #[test]
-fn the_actor_links_no_learner_tools_plotting_or_candle() {
-    assert_never("actor", &["learner-cli", "plotters", "candle-core", "candle-nn"]);
+fn the_actor_links_no_learner_tools_reflection_plotting_or_candle() {
+    assert_never("actor", &["learner-cli", "tonic-reflection", "plotters", "candle-core", "candle-nn"]);
 }
 
-#[test]
-fn only_actor_train_uses_the_learner() {
+/// Every `.rs` file under `actor/src/DIR`, with its text.
+fn actor_sources(dir: &str) -> Vec<(String, String)> {
     let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
-    let mut users = Vec::new();
-    let mut stack = vec![src.clone()];
+    let mut files = Vec::new();
+    let mut stack = vec![src.join(dir)];
     while let Some(dir) = stack.pop() {
         for entry in std::fs::read_dir(&dir).unwrap() {
             let path = entry.unwrap().path();
             if path.is_dir() {
                 stack.push(path);
-            } else if path.extension().is_some_and(|e| e == "rs") && std::fs::read_to_string(&path).unwrap().contains("learner::") {
-                users.push(path.strip_prefix(&src).unwrap().display().to_string());
+            } else if path.extension().is_some_and(|e| e == "rs") {
+                files.push((path.strip_prefix(&src).unwrap().display().to_string(), std::fs::read_to_string(&path).unwrap()));
             }
         }
     }
-    assert_eq!(users, ["train.rs"], "only actor/src/train.rs may use the learner crate (ARCHITECTURE.md)");
+    files.sort();
+    files
+}
+
+#[test]
+fn only_actor_train_uses_the_learner() {
+    let users: Vec<String> = actor_sources("").into_iter().filter(|(_, text)| text.contains("learner::")).map(|(path, _)| path).collect();
+    assert!(!users.is_empty(), "actor/src/runner/ starts a learner in process: a test that sees no user sees nothing");
+    let outside: Vec<&String> = users.iter().filter(|p| !p.starts_with("runner/")).collect();
+    assert!(outside.is_empty(), "only actor/src/runner/ (`actor train`) may use the learner crate (ARCHITECTURE.md): {outside:?}");
+}
+
+#[test]
+fn the_sampling_worker_uses_no_learner_code() {
+    let sampling = actor_sources("sampling");
+    assert!(
+        sampling.len() >= 4,
+        "actor/src/sampling/ holds the worker `actor --learner` runs: {sampling:?}",
+        sampling = sampling.iter().map(|(p, _)| p).collect::<Vec<_>>()
+    );
+    for (path, text) in &sampling {
+        for forbidden in ["learner::", "crate::runner", "crate::eval", "crate::tools"] {
+            assert!(
+                !text.contains(forbidden),
+                "actor/src/{path} uses `{forbidden}`: the sampling worker needs only sim-core, agent and proto (ARCHITECTURE.md)"
+            );
+        }
+    }
 }
 
 #[test]

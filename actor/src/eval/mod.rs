@@ -18,17 +18,21 @@ use anyhow::{Context, Result, bail};
 use clap::Args;
 
 pub mod behaviour;
-pub mod periodic;
+pub mod episode;
+pub mod greedy;
+pub mod lockstep;
+pub mod policy;
 pub mod report;
-pub mod run;
+pub mod routes;
 pub mod score;
 pub mod suite;
+pub mod table;
 pub mod trajectory;
 
-use crate::greedy::{EPSILON, GreedyAgent, load_checkpoint};
-use crate::routes::{parse_routes, town_by_name_or_file};
+use greedy::{EPSILON, GreedyAgent, load_checkpoint};
+use lockstep::{Agent, Driver, EvalOptions, evaluate, model_based};
 use report::table;
-use run::{Agent, Driver, EvalOptions, evaluate, model_based};
+use routes::{parse_routes, town_by_name_or_file};
 use suite::{Suite, SuiteOptions, evaluate_suite, model_based_avoid, suite_table};
 
 #[derive(Debug, Args)]

@@ -4,7 +4,8 @@
 use serde::Serialize;
 use sim_core::config::Variant;
 
-use crate::greedy::{CheckpointInfo, EPSILON};
+use crate::eval::greedy::{CheckpointInfo, EPSILON};
+use crate::eval::table::{Align, write_table};
 
 /// Outcomes of one agent on one route.
 #[derive(Debug, Clone, Serialize)]
@@ -122,29 +123,8 @@ pub fn table(report: &Report, markdown: bool) -> String {
             if first_row { opt(paper_mean(|r| r.paper_human)) } else { String::new() },
         ]);
     }
-    if markdown {
-        let _ = writeln!(out, "| {} |", header.join(" | "));
-        let _ = writeln!(out, "|{}", ["---|", "---|", "---:|", "---:|", "---:|", "---:|", "---:|", "---:|", "---:|", "---:|"].concat());
-        for r in &rows {
-            let _ = writeln!(out, "| {} |", r.join(" | "));
-        }
-    } else {
-        let widths: Vec<usize> = (0..header.len())
-            .map(|c| rows.iter().map(|r| r[c].chars().count()).chain([header[c].chars().count()]).max().unwrap_or(0))
-            .collect();
-        let line = |cells: &[String]| -> String {
-            let parts: Vec<String> = cells
-                .iter()
-                .enumerate()
-                .map(|(c, s)| if c < 2 { format!("{s:<w$}", w = widths[c]) } else { format!("{s:>w$}", w = widths[c]) })
-                .collect();
-            parts.join("  ").trim_end().to_owned()
-        };
-        let _ = writeln!(out, "{}", line(&header.map(str::to_owned)));
-        for r in &rows {
-            let _ = writeln!(out, "{}", line(r));
-        }
-    }
+    let (l, r) = (Align::Left, Align::Right);
+    write_table(&mut out, header, [l, l, r, r, r, r, r, r, r, r], &rows, markdown);
     let _ = writeln!(out);
     for a in &report.agents {
         let what = match (&a.kind, &a.checkpoint) {

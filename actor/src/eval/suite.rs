@@ -18,15 +18,14 @@ use sim_core::expert::Expert;
 use sim_core::hazards::{HazardKind, HazardsConfig};
 use sim_core::planner::PlannerKind;
 use sim_core::scenario::{EvalRoute, Scenario};
-use sim_core::vehicle::Action;
 
-use crate::episode::Episode;
 use crate::eval::behaviour::BehaviourWatch;
-use crate::eval::run::{Agent, Driver, eval_env_config};
+use crate::eval::episode::Episode;
+use crate::eval::lockstep::{Agent, Driver, eval_env_config};
+use crate::eval::policy::Policy;
 use crate::eval::score::{Infraction, ProgressWatch, RunEnd, RunScore, score_run};
+use crate::eval::table::{Align, write_table};
 use crate::eval::trajectory::{Trajectory, TrajectoryRecorder};
-use crate::greedy::greedy_actions;
-use crate::policy::Policy;
 
 /// A suite of scenarios.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -261,13 +260,7 @@ fn drive_scored(
         if live.is_empty() {
             break;
         }
-        let actions: Vec<Action> = match driver {
-            Driver::ModelBased(policy) => live.iter().map(|&k| policy.act(&envs[k])).collect(),
-            Driver::Greedy(agent) => {
-                let refs: Vec<&Env> = live.iter().map(|&k| &envs[k]).collect();
-                greedy_actions(agent, &refs).into_iter().map(|a| agent.actions[a as usize]).collect()
-            }
-        };
+        let actions = driver.actions(envs, &live);
         for (&k, action) in live.iter().zip(actions) {
             let env = &mut envs[k];
             let r = env.step(action)?;
@@ -365,29 +358,8 @@ pub fn suite_table(report: &SuiteReport, markdown: bool) -> String {
         ]);
     }
     let mut out = String::new();
-    if markdown {
-        let _ = writeln!(out, "| {} |", header.join(" | "));
-        let _ = writeln!(out, "|---|---|---|---:|---:|---:|---:|---|---:|");
-        for r in &rows {
-            let _ = writeln!(out, "| {} |", r.join(" | "));
-        }
-    } else {
-        let widths: Vec<usize> = (0..header.len())
-            .map(|c| rows.iter().map(|r| r[c].chars().count()).chain([header[c].chars().count()]).max().unwrap_or(0))
-            .collect();
-        let line = |cells: &[String]| -> String {
-            let parts: Vec<String> = cells
-                .iter()
-                .enumerate()
-                .map(|(c, s)| if c < 3 || c == 7 { format!("{s:<w$}", w = widths[c]) } else { format!("{s:>w$}", w = widths[c]) })
-                .collect();
-            parts.join("  ").trim_end().to_owned()
-        };
-        let _ = writeln!(out, "{}", line(&header.map(str::to_owned)));
-        for r in &rows {
-            let _ = writeln!(out, "{}", line(r));
-        }
-    }
+    let (l, r) = (Align::Left, Align::Right);
+    write_table(&mut out, header, [l, l, l, r, r, r, r, l, r], &rows, markdown);
     let _ = writeln!(
         out,
         "\nSuite `{}` on town `{}`, {} run(s) per scenario. Driving score = route completion × infraction penalty (CARLA leaderboard factors: pedestrian 0.50, vehicle 0.60, static 0.65, right of way 0.70, timeout 0.70; off-road and blocked end the run); success = arrival without infraction.",
@@ -399,8 +371,8 @@ pub fn suite_table(report: &SuiteReport, markdown: bool) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::eval::run::model_based;
-    use crate::greedy::load_checkpoint;
+    use crate::eval::greedy::load_checkpoint;
+    use crate::eval::lockstep::model_based;
     use crate::testing::{tiny_config, write_checkpoint};
     use sim_core::config::Variant;
 

@@ -1,9 +1,9 @@
 //! AVX512-BF16: detection, and the `vdpbf16ps` kernel of `bf16_matmul` for CPUs without AMX
 //! (Intel Xeons before Sapphire Rapids that have it, AMD Zen 4 and later). One `vdpbf16ps`
 //! multiplies 16 pairs of bf16 values into 16 f32 sums, twice the products of an f32 FMA on the
-//! same register. On Intel's cores it issues on one port where FMA has two and gains nothing (an
-//! update ran 1.4–1.6× slower than f32 on an Intel Xeon, docs/PERFORMANCE.md); whether it gains on
-//! Zen 4 is not measured. So it runs only where `precision = "bf16"` asks for it.
+//! same register. On Intel's cores it issues on one port where FMA has two, so there it loses to
+//! f32; on AMD Zen 4 it beats f32 (docs/PERFORMANCE.md#bf16). It runs only where `precision =
+//! "bf16"` asks for it: `auto` is AMX only.
 //!
 //! A block of up to 6 output rows × 64 columns (24 zmm accumulators) is kept in registers over
 //! one K block: per pair of K values, the block's 4 vectors of the packed right matrix are loaded

@@ -87,7 +87,8 @@ pub fn kernel_k_major(w: &[f32], g: &ConvGeom, out: &mut Vec<f32>) {
     out.resize(9 * g.cin * g.cout, 0.0);
     // A transpose, in blocks of 16 filters: a block's weights (16 × 9·cin, 36 KiB at 64 channels)
     // stay in L1 while its column of the output is written. Filter by filter, every write fell
-    // 9·cin·cout apart, on one L1 set, and the copy cost a third of a batch-1 forward pass.
+    // 9·cin·cout apart, on one L1 set, and the copy was a large share of a batch-1 forward pass
+    // (experiments/performance/CHANGELOG.md, fc1 on the tiles).
     for f0 in (0..g.cout).step_by(16) {
         let f1 = (f0 + 16).min(g.cout);
         for (row, out_row) in out.chunks_exact_mut(g.cout).enumerate() {
@@ -138,7 +139,7 @@ fn gather_patches(input: &[f32], g: &ConvGeom, first: usize, patches: &mut [f32]
 
 /// Convolution of one padded image (`padded_in` floats) with the k-major kernel, bias excluded,
 /// into `out` (conv-out layout), on `threads` of `gemm`'s threads. `patches` is scratch of
-/// [`ConvGeom::patches_len`] floats. (`fastnet::bands` splits one image's rows across threads
+/// [`ConvGeom::patches_len`] floats. (`fastnet::thread_split` splits one image's rows across threads
 /// instead, which pays off where `gemm`'s threading does not.)
 pub fn forward(input: &[f32], kernel: &[f32], g: &ConvGeom, out: &mut [f32], patches: &mut [f32], threads: usize) {
     let rows = g.rows();

@@ -59,7 +59,8 @@ pub fn plane(g: &ConvGeom) -> usize {
 
 /// The padded image `input` (bf16, pixel-major: the forward pass's copy) as channel planes of
 /// [`plane`] values. A transpose of 16-bit values only: the forward pass already rounded them,
-/// so this pass does no arithmetic (it converted from f32 itself once, 7 % of a bf16 update).
+/// so this pass does no arithmetic (converting from f32 again here was a visible share of a bf16
+/// update: experiments/performance/CHANGELOG.md).
 pub fn transpose_padded(input: &[u16], g: &ConvGeom, out: &mut Aligned<u16>) {
     // Blocks of pixels whose channels fit in L1, so that each plane is written a run at a time.
     const PIXELS: usize = 16;

@@ -17,7 +17,7 @@
 //! - [`dense_bf16`]: the first dense layer on a bf16 kernel, for a training batch.
 //! - [`pool`]: fused bias + ReLU + 2×2 average pooling and its backward pass.
 //! - [`model`]: the whole network, forward and backward, over a batch.
-//! - [`bands`]: one image's layers split across threads (the actors' small batches).
+//! - [`thread_split`]: one image's layers split across threads (the actors' small batches).
 //! - [`inference`]: acting: greedy actions for a batch of observations.
 //! - [`precision`]: `[agent] precision` (auto, f32, bf16) resolved against the machine.
 //! - [`params`]: parameters in candle's layout, their seeded initialisation, and Adam.
@@ -25,7 +25,6 @@
 pub mod aligned;
 pub mod amx;
 pub mod avx512_bf16;
-pub mod bands;
 pub mod bf16;
 pub mod bf16_layout;
 pub mod bf16_matmul;
@@ -39,6 +38,7 @@ pub mod model;
 pub mod params;
 pub mod pool;
 pub mod precision;
+pub mod thread_split;
 
 pub use inference::{Inference, argmax};
 pub use model::FastNet;

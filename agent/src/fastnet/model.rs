@@ -5,10 +5,9 @@
 //! synchronisation between layers; each thread keeps its own buffers and kernel-gradient partial
 //! sums (summed at the end, in a fixed order, so that results do not depend on timing). The dense
 //! layers run on the whole batch with `gemm`'s own threads. A single image (an actor's inference)
-//! is split across the threads instead, by bands of lines and of units (`fastnet::bands`).
+//! is split across the threads instead, by bands of lines and of units (`fastnet::thread_split`).
 
 use super::aligned::Aligned;
-use super::bands;
 use super::bf16;
 use super::bf16_matmul::PackedB;
 use super::conv::{self, ConvGeom};
@@ -18,6 +17,7 @@ use super::dense_bf16::{self, DenseBf16};
 use super::gemm::{View, matmul};
 use super::params::{CONV_B, CONV_W, FC1_B, FC1_W, FC2_B, FC2_W, Params, Q_B, Q_W};
 use super::pool::{self, Strided};
+use super::thread_split;
 use crate::shape::NetShape;
 
 /// The buffers of one thread's share of the batch.
@@ -68,9 +68,9 @@ pub struct FastNet {
     dense_t: Vec<f32>,
     /// The hidden dense layers' weights transposed (`k × n`, row-major: fc1, fc2), laid out for
     /// inference (`pack_for_inference`; empty otherwise). `gemm` multiplies them without packing
-    /// a copy; the candle layout (`n × k`) made it pack the whole weight matrix at every call,
-    /// which at an actor's batch of 4 was a fifth of its inference (docs/PERFORMANCE.md, "README's
-    /// `actor train`: where the cores go").
+    /// a copy; the candle layout (`n × k`) made it pack the whole weight matrix at every call, a
+    /// copy as large as the arithmetic it fed at an actor's small batches
+    /// (experiments/performance/CHANGELOG.md, "where the cores go").
     dense_wt: [Vec<f32>; 2],
     /// fc1's bf16 operands, where it runs on the bf16 kernel (`dense_bf16`).
     fc1_bf16: DenseBf16,
@@ -421,7 +421,7 @@ impl Part {
                 {
                     let next = &geoms[1];
                     let dst = &mut next_inputs[0][img * next.padded_in()..(img + 1) * next.padded_in()];
-                    bands::direct_pool(input, kernel, bias, g, dst, Strided::padded(next.w, next.cin), bands);
+                    thread_split::direct_pool(input, kernel, bias, g, dst, Strided::padded(next.w, next.cin), bands);
                     continue;
                 }
                 let pre = &mut self.pre[l][img * po..(img + 1) * po];
@@ -436,9 +436,9 @@ impl Part {
                     let next = &geoms[l + 1];
                     let dst = &mut next_inputs[0][img * next.padded_in()..(img + 1) * next.padded_in()];
                     let to = Strided::padded(next.w, next.cin);
-                    bands::conv_pool(ops, g, bias, pre, &mut self.patches, dst, to, bands);
+                    thread_split::conv_pool(ops, g, bias, pre, &mut self.patches, dst, to, bands);
                 } else {
-                    bands::conv(ops, g, pre, &mut self.patches, bands);
+                    thread_split::conv(ops, g, pre, &mut self.patches, bands);
                     let dst = &mut x[img * flat..(img + 1) * flat];
                     pool::forward(pre, bias, g.h, g.w, dst, Strided::channel_major(g.h / 2, g.w / 2));
                 }
@@ -564,10 +564,10 @@ fn dense(
     scratch: &mut Vec<f32>,
 ) {
     if threads > 1 {
-        // Also for the learner's batch of 32: `gemm`'s own two threads took 0.8 ms for fc1's
-        // 32 × 2306 × 256 product where two bands of units on one thread each take 0.24 (and one
-        // thread 0.4), three times per update.
-        bands::dense(out, input, w, b, k, n, scratch, threads);
+        // Also for the learner's batch of 32: on fc1's product `gemm`'s own two threads were
+        // slower than its one, and two bands of units, one per thread, faster than either
+        // (docs/PERFORMANCE.md, "Design, in short").
+        thread_split::dense(out, input, w, b, k, n, scratch, threads);
     } else if wt.is_empty() || b == 1 {
         // One image: `gemm` takes its matrix-vector path, which reads `W`'s rows in place (no
         // packing either way) and sums in the order it always has.

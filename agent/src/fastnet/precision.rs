@@ -7,8 +7,8 @@ use super::bf16_matmul::{self, Kernel};
 
 /// `[agent] precision`: `auto` (bf16 where the CPU has AMX-BF16 and the OS grants the tile state,
 /// else f32), `f32`, or `bf16` (on AMX, else on AVX512-BF16; refused where neither is present).
-/// `auto` leaves AVX512-BF16 alone: on an Intel Xeon it ran the update 1.4–1.6× slower than f32
-/// (docs/PERFORMANCE.md), and no machine where it might be faster (AMD Zen 4) has measured it.
+/// `auto` leaves AVX512-BF16 alone: on Intel's cores it loses to f32, and on AMD Zen 4, where it
+/// wins, choosing it was left to the issue that defined `auto` as AMX only (docs/PERFORMANCE.md#bf16).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Precision {

@@ -6,4 +6,5 @@ pub mod bench;
 pub mod certs;
 pub mod health;
 pub mod plot;
+pub mod reflection;
 pub mod status;

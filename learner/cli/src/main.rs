@@ -298,6 +298,7 @@ fn main() -> Result<()> {
                     tls_cert,
                     tls_key,
                     tls_client_ca,
+                    extra_services: Some(learner_cli::reflection::routes()?),
                 })
                 .await
             }

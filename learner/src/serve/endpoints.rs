@@ -1,5 +1,5 @@
-//! The learner's listeners: the gRPC service (with health, reflection and token authentication)
-//! and the Prometheus endpoint, over TLS when it is configured; and the addresses they bind.
+//! The learner's listeners: the gRPC service (with health, token authentication and the services
+//! the program adds, such as reflection) and the Prometheus endpoint, over TLS when it is configured; and the addresses they bind.
 
 use std::net::SocketAddr;
 use std::path::Path;
@@ -12,7 +12,7 @@ use tonic::codec::CompressionEncoding;
 use super::run_dir::{ADDR_FILE, METRICS_ADDR_FILE};
 use crate::service::LearnerService;
 use crate::service::tls::{Alpn, ServerTls, ServerTlsFiles};
-use crate::state::Shared;
+use crate::shared_state::Shared;
 use crate::telemetry::prometheus::serve_prometheus;
 use agent::config::RunConfig;
 
@@ -78,7 +78,7 @@ pub(super) async fn serve_metrics(listen: &str, run_dir: &Path, tls: Option<&Arc
     Ok(())
 }
 
-/// Binds `service.listen` and serves the learner, health and reflection on it; the bound address
+/// Binds `service.listen` and serves the learner, health and `extra` on it; the bound address
 /// (also written to the run directory), the stop channel and the server's task.
 pub(super) async fn serve_grpc(
     cfg: &RunConfig,
@@ -86,6 +86,7 @@ pub(super) async fn serve_grpc(
     tls: Option<&Arc<ServerTls>>,
     token: Option<String>,
     shared: &Arc<Shared>,
+    extra: Option<tonic::service::Routes>,
 ) -> Result<(SocketAddr, tokio::sync::oneshot::Sender<()>, GrpcServer)> {
     let addr = resolve(&cfg.service.listen).await?;
     let listener =
@@ -117,6 +118,7 @@ pub(super) async fn serve_grpc(
     tracing::info!(addr = %bound, tls = tls.is_some(), mutual_tls = tls.is_some_and(|t| t.mutual()), run_dir = %run_dir.display(), run_id = %shared.run_id, "learner listening");
     warn_if_in_clear("the gRPC service (--listen)", bound, tls.is_some());
     let (stop_server, stopped) = tokio::sync::oneshot::channel::<()>();
+    let routes = extra.unwrap_or_default().add_service(health).add_service(svc);
     // Batches of frames are large: HTTP/2's default 64 KiB flow-control window would stall each
     // one on window updates.
     let router = tonic::transport::Server::builder()
@@ -125,23 +127,11 @@ pub(super) async fn serve_grpc(
         // Streams of actors that vanished without closing (a cut network) end within ~30 s.
         .http2_keepalive_interval(Some(std::time::Duration::from_secs(10)))
         .http2_keepalive_timeout(Some(std::time::Duration::from_secs(20)))
-        .add_service(health)
-        .add_service(svc);
-    // Server reflection in both protocol revisions: `grpc.reflection.v1` (grpcurl, current
-    // clients) and `grpc.reflection.v1alpha`, which many stock clients still speak only (grpcio's
-    // Python `ProtoReflectionDescriptorDatabase`, older grpcurl builds, GUI clients).
-    let router = {
-        let reflection = || {
-            tonic_reflection::server::Builder::configure()
-                .register_encoded_file_descriptor_set(proto::v1::FILE_DESCRIPTOR_SET)
-                .register_encoded_file_descriptor_set(tonic_health::pb::FILE_DESCRIPTOR_SET)
-        };
-        router.add_service(reflection().build_v1()?).add_service(reflection().build_v1alpha()?)
-    };
+        .add_routes(routes);
     let stopped = async move {
         let _ = stopped.await;
     };
-    // Health and reflection share the listener, and so its TLS.
+    // Health and the extra services share the listener, and so its TLS.
     let server = match tls {
         Some(t) => {
             use tokio_stream::StreamExt;

@@ -1,5 +1,5 @@
 //! `learner serve`: loads or resumes a run, starts the training thread and the gRPC server
-//! (with health, reflection, optional token authentication), writes metrics, and on SIGINT or
+//! (with health, optional token authentication and the services the caller adds), writes metrics, and on SIGINT or
 //! SIGTERM stops cleanly with a final checkpoint.
 //!
 //! A fresh run writes a checkpoint before it serves, so that `--resume` always finds one. With
@@ -18,7 +18,7 @@ use std::time::{Duration, Instant};
 use anyhow::{Context, Result, bail};
 
 use crate::service::tls::ServerTls;
-use crate::state::{PublishedWeights, Shared, TrainStats};
+use crate::shared_state::{PublishedWeights, Shared, TrainStats};
 use crate::storage::checkpoint;
 use crate::storage::replay::{Replay, ReplayConfig};
 use crate::storage::replay_log::OnDamage;
@@ -56,6 +56,10 @@ pub struct ServeOptions {
     pub tls_cert: Option<PathBuf>,
     pub tls_key: Option<PathBuf>,
     pub tls_client_ca: Option<PathBuf>,
+    /// Services served beside the learner, on its listener and behind its TLS: the `learner`
+    /// program adds server reflection here (`learner_cli::reflection`), so that the library, and
+    /// the actor that runs it in process for `actor train`, link no reflection.
+    pub extra_services: Option<tonic::service::Routes>,
 }
 
 /// Runs the service until SIGINT or SIGTERM, then stops it cleanly.
@@ -136,7 +140,7 @@ impl Running {
         if let Some(reason) = self.shared.failure() {
             bail!("the learner stopped: {reason}");
         }
-        let path = crate::training::train::save_checkpoint(&self.shared, &dqn, &self.run_dir)?;
+        let path = crate::training::trainer::save_checkpoint(&self.shared, &dqn, &self.run_dir)?;
         self.shared.metrics.interval(&self.shared.train_record())?;
         Ok(path)
     }
@@ -144,7 +148,7 @@ impl Running {
 
 /// Starts the service: loads or resumes the run, starts training and serving.
 pub async fn start(opts: ServeOptions) -> Result<Running> {
-    start_with(opts, crate::training::train::run).await
+    start_with(opts, crate::training::trainer::run).await
 }
 
 /// The training loop a learner runs (tests substitute one that fails).
@@ -247,7 +251,8 @@ async fn start_with(opts: ServeOptions, train: Trainer) -> Result<Running> {
     if let Some(m) = &opts.metrics_listen {
         endpoints::serve_metrics(m, &run_dir, tls.as_ref(), &shared).await?;
     }
-    let (bound, stop_server, server) = endpoints::serve_grpc(&cfg, &run_dir, tls.as_ref(), token, &shared).await?;
+    let (bound, stop_server, server) =
+        endpoints::serve_grpc(&cfg, &run_dir, tls.as_ref(), token, &shared, opts.extra_services.clone()).await?;
     Ok(Running { addr: bound, run_dir, shared, tls, stop_server, server, trainer, _lock: lock })
 }
 
@@ -319,7 +324,7 @@ mod tests {
         // The thread sleeps through the burst, as a starved one would, then trains.
         let late = |shared: &Arc<Shared>, dqn, run_dir: &std::path::Path| {
             std::thread::sleep(Duration::from_millis(1500));
-            crate::training::train::run(shared, dqn, run_dir)
+            crate::training::trainer::run(shared, dqn, run_dir)
         };
         let running = start_with(ServeOptions { config: Some(cfg_path), ..ServeOptions::default() }, late).await.unwrap();
         let mut c = proto::v1::learner_client::LearnerClient::connect(format!("http://{}", running.addr)).await.unwrap();

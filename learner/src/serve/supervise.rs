@@ -9,7 +9,7 @@ use std::time::{Duration, Instant};
 use anyhow::{Result, bail};
 
 use super::Trainer;
-use crate::state::Shared;
+use crate::shared_state::Shared;
 use crate::telemetry::progress::RateMeter;
 use crate::training::dqn::Dqn;
 

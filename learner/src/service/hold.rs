@@ -7,7 +7,7 @@
 
 use std::time::{Duration, Instant};
 
-use crate::state::Shared;
+use crate::shared_state::Shared;
 
 /// How often a held stream looks again: an update takes tens of milliseconds at the least.
 const POLL: Duration = Duration::from_millis(2);

@@ -23,7 +23,7 @@ use tokio_stream::{Stream, StreamExt};
 use tonic::{Code, Request, Response, Status, Streaming};
 
 use crate::service::validate::{self, Expect, Reject};
-use crate::state::{ActorRecord, EpisodeOutcome, Shared};
+use crate::shared_state::{ActorRecord, EpisodeOutcome, Shared};
 use crate::storage::replay::StepRecord;
 use crate::storage::replay_log;
 use crate::telemetry::records::EpisodeRecord;

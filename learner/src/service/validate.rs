@@ -6,7 +6,7 @@ use proto::v1 as pb;
 use sim_core::env::PATH_FEATURES;
 
 use crate::service::bounds::Bounds;
-use crate::state::ActorRecord;
+use crate::shared_state::ActorRecord;
 
 /// Most steps one batch may carry.
 pub const MAX_STEPS_PER_BATCH: usize = 4096;

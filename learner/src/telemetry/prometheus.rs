@@ -15,7 +15,7 @@ use prometheus_client::metrics::counter::ConstCounter;
 use prometheus_client::metrics::gauge::ConstGauge;
 use prometheus_client::registry::Registry;
 
-use crate::state::Shared;
+use crate::shared_state::Shared;
 use crate::telemetry::status_report::{ActorReport, EXPORTED, EXPORTED_PER_ACTOR, StatusReport};
 
 /// Reads the learner's state at every scrape.

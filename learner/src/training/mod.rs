@@ -1,4 +1,4 @@
 //! Learning: the DQN (online and target networks, Adam) and the loop that trains it from replay.
 
 pub mod dqn;
-pub mod train;
+pub mod trainer;

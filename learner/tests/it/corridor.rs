@@ -14,7 +14,7 @@ use agent::config::{AgentConfig, RunConfig};
 use agent::fastnet::Precision;
 use learner::storage::replay::{Replay, ReplayConfig, StepRecord};
 use learner::training::dqn::Dqn;
-use learner::training::train::make_batch;
+use learner::training::trainer::make_batch;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 

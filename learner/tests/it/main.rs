@@ -3,6 +3,5 @@
 mod bounds;
 mod corridor;
 mod metrics;
-mod reflection;
 mod reliability;
 mod service;

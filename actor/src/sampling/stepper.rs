@@ -1,0 +1,162 @@
+//! An actor's stepping thread: N environments, one batched greedy forward pass for all of them
+//! per step, ε-greedy exploration, and the steps handed to the outbox in batches. New weights are
+//! swapped in between steps; it waits on the learner only while one that is taking batches has
+//! several waiting (`Link::wait_for_room`: the replay ratio's backpressure).
+
+use std::sync::Arc;
+use std::sync::atomic::Ordering;
+
+use agent::config::RunConfig;
+use agent::fastnet::Inference;
+use anyhow::Result;
+use proto::v1 as pb;
+use rand::{Rng, RngExt, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use sim_core::env::Env;
+use sim_core::scenario::Scenario;
+use sim_core::town::Town;
+
+use crate::sampling::outbox::Link;
+
+/// The environments and the policy: runs until stop.
+#[allow(clippy::too_many_arguments)]
+pub fn step_loop(
+    cfg: &RunConfig,
+    town: &Arc<Town>,
+    link: &Link,
+    n: usize,
+    seed: u64,
+    index: u32,
+    episode_stream: u64,
+    batch_steps: usize,
+    buffer_steps: usize,
+) -> Result<()> {
+    anyhow::ensure!(cfg.env.camera.is_some(), "the run has no camera configured");
+    let shape = cfg.net_shape();
+    // One thread: an actor's batch is a few frames, and actors share the cores with each other
+    // and the learner.
+    let (mut net, arithmetic) = Inference::with_precision(shape, cfg.agent.seed, 1, cfg.agent.precision);
+    tracing::info!(bf16 = arithmetic.bf16, "acting in {} ({})", arithmetic.arithmetic(), arithmetic.reason);
+    let actions = cfg.agent.action_set.actions();
+    let mut rng = episode_rng(seed, index, episode_stream);
+    let mut envs: Vec<Env> = (0..n).map(|_| Env::new(town.clone(), cfg.env.clone())).collect::<Result<_, _>>()?;
+    let mut episode = vec![0u64; n];
+    let mut t = vec![0u32; n];
+    let mut returns = vec![0f64; n];
+    let mut pending: Vec<pb::Step> = Vec::new();
+    let mut summaries: Vec<pb::EpisodeSummary> = Vec::new();
+    // The wire form of an observation (it takes the image the environment already copied out).
+    let wire = |o: sim_core::env::Observation| -> pb::Observation {
+        pb::Observation {
+            image: o.image.map(|i| i.data).unwrap_or_default(),
+            speed: o.speed,
+            d: o.d.unwrap_or(0.0),
+            path: o.path.map(Vec::from).unwrap_or_default(),
+        }
+    };
+    let episode_seed = |rng: &mut ChaCha8Rng| rng.next_u64();
+    for (k, env) in envs.iter_mut().enumerate() {
+        let seed = episode_seed(&mut rng);
+        if k == 0 {
+            // Said once, so that a restart can be seen to continue with new episodes.
+            tracing::info!(episode_stream, first_episode_seed = seed, "environments starting");
+        }
+        env.reset(seed, Scenario::Random)?;
+        pending.push(pb::Step { env: k as u32, episode: 0, t: 0, obs: Some(wire(env.observation())), ..pb::Step::default() });
+    }
+    let mut total_steps = 0u64;
+    while !link.stop.load(Ordering::SeqCst) {
+        if let Some((version, params)) = link.fresh_weights.lock().expect("weights lock").take() {
+            net.set_params(params);
+            link.acting_version.store(version, Ordering::SeqCst);
+        }
+        // One batched forward pass for all environments.
+        let scalars: Vec<f32> = envs.iter().flat_map(|e| agent::features::scalar_features(cfg, &agent::features::env_scalars(e))).collect();
+        let greedy = net.greedy(envs.iter().map(|e| e.image().data.as_slice()), &scalars);
+        let epsilon = cfg.epsilon(index, link.run_env_steps(total_steps));
+        for (k, env) in envs.iter_mut().enumerate() {
+            let a = if rng.random::<f32>() < epsilon { rng.random_range(0..actions.len()) as u32 } else { greedy[k] };
+            let r = env.step(actions[a as usize])?;
+            t[k] += 1;
+            returns[k] += f64::from(r.reward);
+            pending.push(pb::Step {
+                env: k as u32,
+                episode: episode[k],
+                t: t[k],
+                obs: Some(wire(r.observation)),
+                action: a,
+                reward: r.reward,
+                terminated: r.terminated,
+                truncated: r.truncated,
+            });
+            if r.terminated || r.truncated {
+                summaries.push(pb::EpisodeSummary {
+                    env: k as u32,
+                    episode: episode[k],
+                    episode_return: returns[k] as f32,
+                    steps: t[k],
+                    arrived: r.info.arrived,
+                    collision: r.info.collision.map(|c| c.name().to_owned()).unwrap_or_default(),
+                    scenario: "random".into(),
+                });
+                episode[k] += 1;
+                t[k] = 0;
+                returns[k] = 0.0;
+                env.reset(episode_seed(&mut rng), Scenario::Random)?;
+                pending.push(pb::Step {
+                    env: k as u32,
+                    episode: episode[k],
+                    t: 0,
+                    obs: Some(wire(env.observation())),
+                    ..pb::Step::default()
+                });
+            }
+        }
+        total_steps += n as u64;
+        link.env_steps.store(total_steps, Ordering::SeqCst);
+        if pending.len() >= batch_steps {
+            let steps = std::mem::take(&mut pending);
+            let eps = std::mem::take(&mut summaries);
+            let version = link.acting_version.load(Ordering::SeqCst);
+            link.outbox.lock().expect("outbox lock").push_bounded((steps, eps, epsilon, version), buffer_steps);
+            link.wait_for_room();
+        }
+    }
+    // Hand over what is left for the final flush.
+    if !pending.is_empty() {
+        let mut ob = link.outbox.lock().expect("outbox lock");
+        ob.steps += pending.len();
+        ob.batches.push_back((
+            pending,
+            summaries,
+            cfg.epsilon(index, link.run_env_steps(total_steps)),
+            link.acting_version.load(Ordering::SeqCst),
+        ));
+    }
+    Ok(())
+}
+
+/// The random stream of an actor's episode seeds and exploration: from the run's seed, the
+/// actor's index and the learner's `episode_stream` for this registration. Stream 0 (a fresh run's
+/// first life of the actor) is the stream actors have always drawn from; a restarted actor gets
+/// another one, so that it does not replay its first life's routes and traffic.
+pub fn episode_rng(seed: u64, index: u32, episode_stream: u64) -> ChaCha8Rng {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed ^ (u64::from(index) << 32));
+    rng.set_stream(episode_stream);
+    rng
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn stream_zero_is_the_original_stream_and_others_differ() {
+        let draw = |mut r: ChaCha8Rng| (0..4).map(|_| r.next_u64()).collect::<Vec<_>>();
+        let original = draw(ChaCha8Rng::seed_from_u64(7 ^ (3u64 << 32)));
+        assert_eq!(draw(episode_rng(7, 3, 0)), original, "a fresh run's episodes are unchanged");
+        let restarted = draw(episode_rng(7, 3, 1 + (5000 << 16 | 2)));
+        assert_ne!(restarted, original);
+        assert_ne!(restarted, draw(episode_rng(7, 3, 1 + (5000 << 16 | 3))));
+    }
+}

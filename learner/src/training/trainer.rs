@@ -1,0 +1,184 @@
+//! The training thread: decoupled from ingestion, it trains as fast as the replay ratio allows
+//! (samples trained per transition inserted; the experience streams wait while it owes more than
+//! `service.update_lag_limit` updates, `service/backpressure.rs`), publishes weights every few updates and writes
+//! checkpoints on an interval — the first at most 30 s after it starts, so that an early SIGKILL
+//! loses little training. A checkpoint that cannot be written is retried with backoff (5 s
+//! doubling to 5 min) while training goes on, and shown in Status; a publication that fails is
+//! retried at the next one.
+
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use agent::backoff::Backoff;
+
+use crate::shared_state::{PublishedWeights, Shared};
+use crate::storage::checkpoint;
+use crate::storage::replay::Sample;
+use crate::training::dqn::{Batch, Dqn};
+use agent::config::RunConfig;
+use agent::features::{RawScalars, scalar_features};
+use agent::weights;
+
+/// Turns sampled transitions into an update's batch (the frames are used as they are).
+#[must_use]
+pub fn make_batch(cfg: &RunConfig, s: Sample) -> Batch {
+    let scalars = |sc: &[RawScalars]| -> Vec<f32> { sc.iter().flat_map(|x| scalar_features(cfg, x)).collect() };
+    Batch {
+        scalars: scalars(&s.scalars),
+        next_scalars: scalars(&s.next_scalars),
+        images: s.images,
+        next_images: s.next_images,
+        actions: s.actions,
+        rewards: s.rewards,
+        discounts: s.discounts,
+        weights: s.weights,
+    }
+}
+
+/// The first checkpoint after training starts comes after at most this long.
+pub const FIRST_CHECKPOINT: Duration = Duration::from_secs(30);
+
+/// Publishes the online weights as a new version (from the run's version lease: newer than any
+/// version published before, also by an earlier process of the run).
+pub fn publish(shared: &Shared, dqn: &Dqn) -> anyhow::Result<u64> {
+    let bytes = weights::to_safetensors(&dqn.online, "")?;
+    let version = shared.versions.lock().expect("versions lock").next_version()?;
+    *shared.weights.write().expect("weights lock") = PublishedWeights { version, bytes: Arc::new(bytes) };
+    shared.counters.lock().expect("counters lock").weights_version = version;
+    Ok(version)
+}
+
+/// Writes a checkpoint of the current state. With a replay log, the counters it saves include the
+/// batches up to a log position, which is made durable first: a resumed learner counts the
+/// batches after it from the log, and none twice.
+pub fn save_checkpoint(shared: &Shared, dqn: &Dqn, run_dir: &std::path::Path) -> anyhow::Result<PathBuf> {
+    let mut counters = shared.counters.lock().expect("counters lock").clone();
+    counters.learner_step = dqn.updates;
+    counters.elapsed_secs = shared.run_secs();
+    if let Some(log) = &shared.log {
+        log.wait_durable(counters.replay_log_position)?;
+    }
+    Ok(checkpoint::save(run_dir, dqn, &counters, &shared.cfg.to_toml())?)
+}
+
+/// When the next checkpoint is due, and how long to wait after a failed one.
+#[derive(Debug)]
+struct CheckpointSchedule {
+    next: Instant,
+    retry: Backoff,
+}
+
+impl CheckpointSchedule {
+    /// 5 s doubling to 5 min, without jitter (one learner, no herd).
+    const RETRY: Backoff = Backoff::new(Duration::from_secs(5), Duration::from_secs(300));
+
+    /// Writes a checkpoint if one is due; a failure is logged, shown in Status and retried.
+    fn tick(&mut self, shared: &Shared, dqn: &Dqn, run_dir: &std::path::Path, interval: Duration) {
+        if Instant::now() < self.next {
+            return;
+        }
+        match save_checkpoint(shared, dqn, run_dir) {
+            Ok(path) => {
+                tracing::info!(path = %path.display(), learner_step = dqn.updates, "checkpoint written");
+                if shared.checkpoint_error.lock().expect("checkpoint error lock").take().is_some() {
+                    tracing::info!("checkpoints work again");
+                }
+                self.next = Instant::now() + interval;
+                self.retry.reset();
+            }
+            Err(e) => {
+                let message = format!("{e:#}");
+                let retry = self.retry.next_wait();
+                tracing::error!(error = %message, retry_in_secs = retry.as_secs(), "writing a checkpoint failed; training goes on and the write is retried");
+                *shared.checkpoint_error.lock().expect("checkpoint error lock") = Some(message);
+                self.next = Instant::now() + retry;
+            }
+        }
+    }
+}
+
+/// Runs until shutdown is requested; returns the agent for the final checkpoint.
+pub fn run(shared: &Arc<Shared>, mut dqn: Dqn, run_dir: &std::path::Path) -> anyhow::Result<Dqn> {
+    let a = shared.cfg.agent.clone();
+    let interval = Duration::from_secs(shared.cfg.service.checkpoint_interval_secs.max(1));
+    let mut checkpoints = CheckpointSchedule { next: Instant::now() + interval.min(FIRST_CHECKPOINT), retry: CheckpointSchedule::RETRY };
+    // A resumed learner's rebuilt replay was trained on by its predecessor: the replay ratio
+    // counts what arrives from now on.
+    let stored_at_start = {
+        let mut c = shared.counters.lock().expect("counters lock");
+        c.learner_step = dqn.updates;
+        c.transitions_stored
+    };
+    // Where the server set none (a caller that starts this loop itself), the count starts here.
+    shared.ratio_session.lock().expect("ratio session lock").get_or_insert((stored_at_start, dqn.updates));
+    let _clear = ClearBaselineOnExit(shared);
+    let mut loss_ema: Option<f64> = None;
+    let mut q_ema: Option<f64> = None;
+    while !shared.stopping() {
+        checkpoints.tick(shared, &dqn, run_dir, interval);
+        let (len, stored) = {
+            let r = shared.replay.lock().expect("replay lock");
+            let c = shared.counters.lock().expect("counters lock");
+            (r.len(), c.transitions_stored)
+        };
+        if len < a.min_replay {
+            wait_for_data(shared);
+            continue;
+        }
+        // Count from the moment the replay first reached its minimum in this session (if a
+        // stream storing a batch has not fixed it already).
+        shared.fix_ratio_baseline(len, stored);
+        if shared.updates_owed() == 0 {
+            wait_for_data(shared);
+            continue;
+        }
+        let Some(sample) = shared.replay.lock().expect("replay lock").sample(a.batch_size) else { continue };
+        let slots = if a.prioritized_replay { sample.slots.clone() } else { Vec::new() };
+        let stats = dqn.update(&make_batch(&shared.cfg, sample));
+        if a.prioritized_replay {
+            shared.replay.lock().expect("replay lock").update_priorities(&slots, &stats.td_abs);
+        }
+        let smooth = |ema: Option<f64>, x: f32| Some(ema.map_or(f64::from(x), |e| 0.95 * e + 0.05 * f64::from(x)));
+        loss_ema = smooth(loss_ema, stats.loss);
+        q_ema = smooth(q_ema, stats.mean_q);
+        {
+            let mut s = shared.stats.lock().expect("stats lock");
+            s.loss = loss_ema;
+            s.mean_q = q_ema;
+        }
+        shared.counters.lock().expect("counters lock").learner_step = dqn.updates;
+        if dqn.updates.is_multiple_of(a.publish_every_updates)
+            && let Err(e) = publish(shared, &dqn)
+        {
+            tracing::error!(error = %format!("{e:#}"), "publishing weights failed; retried at the next publication");
+        }
+    }
+    Ok(dqn)
+}
+
+/// Clears the replay ratio's baseline when the training thread ends, however it ends: nothing is
+/// owed to a thread that is gone, so no experience stream waits for it.
+struct ClearBaselineOnExit<'a>(&'a Shared);
+
+impl Drop for ClearBaselineOnExit<'_> {
+    fn drop(&mut self) {
+        // The session first, as `Shared::fix_ratio_baseline` locks them; no `expect`: this
+        // runs while a panic unwinds too.
+        if let Ok(mut session) = self.0.ratio_session.lock() {
+            *session = None;
+            if let Ok(mut b) = self.0.ratio_baseline.lock() {
+                *b = None;
+            }
+        }
+    }
+}
+
+/// Waits (at most 50 ms) for transitions to arrive, counting the time as idle.
+fn wait_for_data(shared: &Shared) {
+    let started = Instant::now();
+    let (lock, cv) = &shared.data_arrived;
+    let guard = lock.lock().expect("wait lock");
+    let _ = cv.wait_timeout(guard, Duration::from_millis(50)).expect("wait lock");
+    shared.stats.lock().expect("stats lock").idle_secs += started.elapsed().as_secs_f64();
+}
