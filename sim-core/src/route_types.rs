@@ -3,7 +3,7 @@
 //! type is a shape — straight, a slight or sharp bend, a turn at a junction — with a place
 //! (a highway, an urban junction, under an overpass); this file proposes candidate origin and
 //! destination pairs in a fixed order and keeps the first whose planned route has the shape, with
-//! the tests the embedded towns' routes pass (`sim-core/tests/world.rs`).
+//! the tests the embedded towns' routes pass (`sim-core/tests/it/world.rs`).
 
 use crate::map::{LaneKind, LaneMatch, Map, Turn};
 use crate::route::{Route, plan};

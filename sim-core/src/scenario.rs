@@ -126,7 +126,7 @@ impl EvalRoute {
     }
 
     /// What a route of this type looks like, for finding one in a map without named places (the
-    /// same bounds `sim-core/tests/world.rs` checks the embedded towns' routes against).
+    /// same bounds `sim-core/tests/it/world.rs` checks the embedded towns' routes against).
     #[must_use]
     pub fn shape(self) -> RouteShape {
         let (place, turn_deg, either_way) = match self {

@@ -1,7 +1,7 @@
 //! What the cross-process tests share: processes that are killed when a test ends (also when it
 //! fails), free loopback ports, status polls with deadlines, and signals sent without running
-//! `kill`. Each test file includes it with `mod support;` (unused parts are allowed: not every
-//! file uses everything).
+//! `kill`. tests/it/main.rs includes it as `mod support;` (unused parts are allowed: not every
+//! test uses everything).
 #![allow(dead_code)]
 
 use std::path::Path;

@@ -5,6 +5,8 @@
 mod cmd;
 mod slow;
 mod steps;
+#[cfg(test)]
+mod tidy;
 
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;

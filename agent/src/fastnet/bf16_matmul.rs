@@ -88,22 +88,103 @@ pub fn kernels_here() -> Vec<Kernel> {
     KERNELS.into_iter().filter(|k| k.runs_here().is_ok()).collect()
 }
 
+/// Why [`Product::new`] refused a bf16 product's operands: a programming error of the caller,
+/// never data-dependent.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
+pub enum OperandError {
+    #[error("destination {0:?} is not row-major")]
+    NotRowMajor(View),
+    #[error("shapes: {d:?} = {av:?} · {k_pad}×{n}")]
+    Shapes { d: View, av: AView, k_pad: usize, n: usize },
+    #[error("segment of {0} values is not a multiple of {K_STEP}")]
+    Segment(usize),
+    #[error("left view {view:?} leaves a slice of {len}")]
+    LeftOutside { view: AView, len: usize },
+    #[error("destination view {view:?} leaves a slice of {len}")]
+    DestinationOutside { view: View, len: usize },
+    #[error("a PackedB of {len} values for {k_pad}×{n_pad}")]
+    Packed { len: usize, k_pad: usize, n_pad: usize },
+}
+
+/// `dst = a · b` in bf16 with f32 accumulation, its operands checked once by the checked
+/// constructor: shapes that agree, views inside slices of the lengths it is told, a row-major
+/// destination. [`Product::run_on`] then needs only slices that long and the same `b`'s shape.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Product {
+    d: View,
+    av: AView,
+    /// The lengths of the destination and left slices the views were checked against.
+    lens: [usize; 2],
+    /// `b`'s K (padded), N and padded N.
+    b: [usize; 3],
+}
+
+impl Product {
+    /// The product of view `av` of a slice of `a_len` and `b` into view `d` of a slice of
+    /// `dst_len`. `d` must be row-major (`col_stride` 1) with `av.rows` rows and `b`'s N columns,
+    /// and `av`'s K must be `b`'s padded K.
+    ///
+    /// # Errors
+    /// Which of those does not hold, or a `b` whose data does not match its shape.
+    pub fn new(dst_len: usize, d: View, a_len: usize, av: AView, b: &PackedB) -> Result<Self, OperandError> {
+        if !(d.col_stride == 1 && d.row_stride >= d.cols) {
+            return Err(OperandError::NotRowMajor(d));
+        }
+        if !(d.rows == av.rows && d.cols == b.n && av.k() == b.k_pad) {
+            return Err(OperandError::Shapes { d, av, k_pad: b.k_pad, n: b.n });
+        }
+        if !av.seg_len.is_multiple_of(K_STEP) {
+            return Err(OperandError::Segment(av.seg_len));
+        }
+        if av.end().is_none_or(|end| end > a_len) {
+            return Err(OperandError::LeftOutside { view: av, len: a_len });
+        }
+        let d_end = if d.rows == 0 || d.cols == 0 {
+            Some(d.offset)
+        } else {
+            (d.rows - 1).checked_mul(d.row_stride).and_then(|r| r.checked_add(d.offset + d.cols))
+        };
+        if d_end.is_none_or(|end| end > dst_len) {
+            return Err(OperandError::DestinationOutside { view: d, len: dst_len });
+        }
+        if b.data.len() != b.k_pad * b.n_pad {
+            return Err(OperandError::Packed { len: b.data.len(), k_pad: b.k_pad, n_pad: b.n_pad });
+        }
+        Ok(Self { d, av, lens: [dst_len, a_len], b: [b.k_pad, b.n, b.n_pad] })
+    }
+
+    /// `dst = a · b`, or `dst += a · b` when `accumulate`, on the calling thread, on `kernel`.
+    ///
+    /// # Panics
+    /// If `kernel` cannot run here, a slice is shorter than the constructor was told, or `b`'s
+    /// shape is not the one it was told.
+    pub fn run_on(&self, kernel: Kernel, dst: &mut [f32], accumulate: bool, a: &[u16], b: &PackedB) {
+        assert!(
+            dst.len() >= self.lens[0] && a.len() >= self.lens[1] && [b.k_pad, b.n, b.n_pad] == self.b && b.data.len() == b.k_pad * b.n_pad,
+            "bf16_matmul::Product::run_on: operands other than the ones checked ({self:?})"
+        );
+        if let Err(why) = kernel.runs_here() {
+            panic!("bf16_matmul::matmul on {}: {why}", kernel.name());
+        }
+        // SAFETY: the kernel runs here and the operands are those `new` checked (both just above).
+        #[allow(unsafe_code)]
+        unsafe {
+            run(kernel, dst, self.d, accumulate, a, self.av, b);
+        }
+    }
+}
+
 /// `dst = a · b`, or `dst += a · b` when `accumulate`, in bf16 with f32 accumulation, on the
-/// calling thread, on the machine's kernel ([`available`]). `d` must be row-major (`col_stride`
-/// 1) with `a.rows` rows and `b`'s N columns, and `a`'s K must be `b`'s padded K.
+/// calling thread, on the machine's kernel ([`available`]): a [`Product`] made and run at once.
 ///
 /// # Panics
-/// If the shapes disagree, a view leaves its slice or the destination view is not row-major
-/// (checked first, on any machine), or no bf16 kernel is [`available`]: programming errors of the
-/// caller, never data-dependent.
+/// If the operands are refused ([`Product::new`]'s [`OperandError`]s, checked first, on any
+/// machine), or no bf16 kernel is [`available`]: programming errors of the caller, never
+/// data-dependent.
 pub fn matmul(dst: &mut [f32], d: View, accumulate: bool, a: &[u16], av: AView, b: &PackedB) {
-    check(dst, d, a, av, b);
+    let product = Product::new(dst.len(), d, a.len(), av, b).unwrap_or_else(|e| panic!("bf16_matmul::matmul: {e}"));
     let kernel = available().unwrap_or_else(|why| panic!("bf16_matmul::matmul without a bf16 kernel: {why}"));
-    // SAFETY: the kernel runs here (checked just above) and the operands passed `check`.
-    #[allow(unsafe_code)]
-    unsafe {
-        run(kernel, dst, d, accumulate, a, av, b);
-    }
+    product.run_on(kernel, dst, accumulate, a, b);
 }
 
 /// [`matmul`] on a kernel of [`kernels_here`].
@@ -111,37 +192,14 @@ pub fn matmul(dst: &mut [f32], d: View, accumulate: bool, a: &[u16], av: AView, 
 /// # Panics
 /// As [`matmul`], or if `kernel` cannot run here.
 pub fn matmul_on(kernel: Kernel, dst: &mut [f32], d: View, accumulate: bool, a: &[u16], av: AView, b: &PackedB) {
-    check(dst, d, a, av, b);
-    if let Err(why) = kernel.runs_here() {
-        panic!("bf16_matmul::matmul on {}: {why}", kernel.name());
-    }
-    // SAFETY: the kernel runs here (checked just above) and the operands passed `check`.
-    #[allow(unsafe_code)]
-    unsafe {
-        run(kernel, dst, d, accumulate, a, av, b);
-    }
-}
-
-/// The checks that make [`run`] safe: shapes that agree, views inside their slices, a row-major
-/// destination.
-fn check(dst: &[f32], d: View, a: &[u16], av: AView, b: &PackedB) {
-    assert!(d.col_stride == 1 && d.row_stride >= d.cols, "bf16_matmul::matmul: destination {d:?} is not row-major");
-    assert!(d.rows == av.rows && d.cols == b.n && av.k() == b.k_pad, "bf16_matmul::matmul shapes: {d:?} = {av:?} · {}×{}", b.k_pad, b.n);
-    assert!(av.seg_len.is_multiple_of(K_STEP), "bf16_matmul::matmul: segment of {} values is not a multiple of {K_STEP}", av.seg_len);
-    assert!(av.end().is_some_and(|end| end <= a.len()), "bf16_matmul::matmul: left view {av:?} leaves a slice of {}", a.len());
-    let d_end = if d.rows == 0 || d.cols == 0 {
-        Some(d.offset)
-    } else {
-        (d.rows - 1).checked_mul(d.row_stride).and_then(|r| r.checked_add(d.offset + d.cols))
-    };
-    assert!(d_end.is_some_and(|end| end <= dst.len()), "bf16_matmul::matmul: destination view {d:?} leaves a slice of {}", dst.len());
-    assert!(b.data.len() == b.k_pad * b.n_pad, "bf16_matmul::matmul: a PackedB of {} values for {}×{}", b.data.len(), b.k_pad, b.n_pad);
+    let product = Product::new(dst.len(), d, a.len(), av, b).unwrap_or_else(|e| panic!("bf16_matmul::matmul: {e}"));
+    product.run_on(kernel, dst, accumulate, a, b);
 }
 
 /// The product on `kernel` of checked operands.
 ///
 /// # Safety
-/// `kernel` runs here, and the operands passed [`check`].
+/// `kernel` runs here, and the operands passed [`Product::new`]'s checks.
 #[allow(unsafe_code)]
 unsafe fn run(kernel: Kernel, dst: &mut [f32], d: View, accumulate: bool, a: &[u16], av: AView, b: &PackedB) {
     if d.rows == 0 || d.cols == 0 {
@@ -270,12 +328,18 @@ pub(crate) mod tests {
     }
 
     #[test]
-    #[should_panic(expected = "leaves a slice")]
     fn a_left_view_past_the_end_is_refused() {
-        let a = vec![0u16; 100];
         let mut packed = PackedB::default();
         packed.pack(&[0.0; 64], View::rows(0, 32, 2, 2));
-        let mut out = vec![0f32; 8];
-        matmul(&mut out, View::rows(0, 4, 2, 2), false, &a, AView::rows(0, 4, 32, 30), &packed);
+        let av = AView::rows(0, 4, 32, 30);
+        let refused = Product::new(8, View::rows(0, 4, 2, 2), 100, av, &packed);
+        assert_eq!(refused, Err(OperandError::LeftOutside { view: av, len: 100 }));
+        assert!(refused.unwrap_err().to_string().contains("leaves a slice of 100"));
+        // And a destination that is not row-major, or too short.
+        let cols = View { col_stride: 2, ..View::rows(0, 4, 2, 4) };
+        assert_eq!(Product::new(64, cols, 200, av, &packed), Err(OperandError::NotRowMajor(cols)));
+        let d = View::rows(0, 4, 2, 2);
+        assert_eq!(Product::new(7, d, 200, av, &packed), Err(OperandError::DestinationOutside { view: d, len: 7 }));
+        assert!(Product::new(8, d, 200, av, &packed).is_ok());
     }
 }

@@ -1,7 +1,8 @@
 //! A safe, bounds-checked interface to the `gemm` crate's strided matrix multiply: the only
 //! `unsafe` code of the workspace. Every view is checked to lie inside its slice, and the
-//! destination view to address each element once, before `gemm` is called; views of the inputs
-//! may overlap themselves (the convolution reads a padded image as overlapping rows).
+//! destination view to address each element once, before `gemm` is called (by [`Product::new`],
+//! which returns why not); views of the inputs may overlap themselves (the convolution reads a
+//! padded image as overlapping rows).
 
 #![allow(unsafe_code)]
 
@@ -54,60 +55,120 @@ impl View {
     }
 }
 
-/// `dst = lhs · rhs`, or `dst += lhs · rhs` when `accumulate`, on `threads` threads (1: the
-/// calling thread only).
-///
-/// # Panics
-/// If the shapes disagree, a view leaves its slice, or the destination view aliases itself: these
-/// are programming errors of the caller, never data-dependent.
-#[allow(clippy::too_many_arguments)]
-pub fn matmul(dst: &mut [f32], d: View, accumulate: bool, lhs: &[f32], l: View, rhs: &[f32], r: View, threads: usize) {
-    assert!(l.rows == d.rows && r.cols == d.cols && l.cols == r.rows, "matmul shapes: {d:?} = {l:?} · {r:?}");
-    let inside = |v: View, len: usize| v.end().is_some_and(|end| end <= len);
-    assert!(inside(d, dst.len()), "destination view {d:?} leaves a slice of {}", dst.len());
-    assert!(inside(l, lhs.len()), "left view {l:?} leaves a slice of {}", lhs.len());
-    assert!(inside(r, rhs.len()), "right view {r:?} leaves a slice of {}", rhs.len());
-    assert!(d.is_one_to_one(), "destination view {d:?} addresses an element twice");
-    if d.rows == 0 || d.cols == 0 {
-        return;
-    }
-    if l.cols == 0 {
-        if !accumulate {
-            for i in 0..d.rows {
-                for j in 0..d.cols {
-                    dst[d.offset + i * d.row_stride + j * d.col_stride] = 0.0;
-                }
+/// Why [`Product::new`] refused a product's views: a programming error of the caller, never
+/// data-dependent.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
+pub enum ViewError {
+    #[error("matmul shapes: {d:?} = {l:?} · {r:?}")]
+    Shapes { d: View, l: View, r: View },
+    #[error("{operand} view {view:?} leaves a slice of {len}")]
+    Outside { operand: &'static str, view: View, len: usize },
+    #[error("destination view {0:?} addresses an element twice")]
+    Aliases(View),
+}
+
+/// `dst = lhs · rhs` with views checked once, by the checked constructor, against the lengths of
+/// their slices; [`Product::run`] then needs only slices that long.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Product {
+    d: View,
+    l: View,
+    r: View,
+    /// The lengths of the destination, left and right slices the views were checked against.
+    lens: [usize; 3],
+}
+
+impl Product {
+    /// The product of views `l` of a slice of `lhs_len` and `r` of one of `rhs_len` into view `d`
+    /// of one of `dst_len`.
+    ///
+    /// # Errors
+    /// If the shapes disagree, a view leaves its slice, or the destination view aliases itself.
+    pub fn new(dst_len: usize, d: View, lhs_len: usize, l: View, rhs_len: usize, r: View) -> Result<Self, ViewError> {
+        if !(l.rows == d.rows && r.cols == d.cols && l.cols == r.rows) {
+            return Err(ViewError::Shapes { d, l, r });
+        }
+        for (operand, view, len) in [("destination", d, dst_len), ("left", l, lhs_len), ("right", r, rhs_len)] {
+            if view.end().is_none_or(|end| end > len) {
+                return Err(ViewError::Outside { operand, view, len });
             }
         }
-        return;
+        if !d.is_one_to_one() {
+            return Err(ViewError::Aliases(d));
+        }
+        Ok(Self { d, l, r, lens: [dst_len, lhs_len, rhs_len] })
     }
-    let parallelism = if threads > 1 { Parallelism::Rayon(threads) } else { Parallelism::None };
-    let stride = |s: usize| isize::try_from(s).expect("stride fits isize");
-    // SAFETY: the asserts above keep every element gemm reads inside `lhs` and `rhs` and every
-    // element it writes inside `dst`, each written element distinct; `dst` is exclusively
-    // borrowed, so it cannot alias the inputs. gemm reads overlapping input views correctly.
-    unsafe {
-        gemm::gemm(
-            d.rows,
-            d.cols,
-            l.cols,
-            dst.as_mut_ptr().add(d.offset),
-            stride(d.col_stride),
-            stride(d.row_stride),
-            accumulate,
-            lhs.as_ptr().add(l.offset),
-            stride(l.col_stride),
-            stride(l.row_stride),
-            rhs.as_ptr().add(r.offset),
-            stride(r.col_stride),
-            stride(r.row_stride),
-            1.0,
-            1.0,
-            false,
-            false,
-            false,
-            parallelism,
+
+    /// `dst = lhs · rhs`, or `dst += lhs · rhs` when `accumulate`, on `threads` threads (1: the
+    /// calling thread only).
+    ///
+    /// # Panics
+    /// If a slice is shorter than the constructor was told.
+    pub fn run(&self, dst: &mut [f32], accumulate: bool, lhs: &[f32], rhs: &[f32], threads: usize) {
+        let Self { d, l, r, lens } = *self;
+        assert!(
+            dst.len() >= lens[0] && lhs.len() >= lens[1] && rhs.len() >= lens[2],
+            "gemm::Product::run: slices of {}, {} and {} for one checked against {lens:?}",
+            dst.len(),
+            lhs.len(),
+            rhs.len()
         );
+        if d.rows == 0 || d.cols == 0 {
+            return;
+        }
+        if l.cols == 0 {
+            if !accumulate {
+                for i in 0..d.rows {
+                    for j in 0..d.cols {
+                        dst[d.offset + i * d.row_stride + j * d.col_stride] = 0.0;
+                    }
+                }
+            }
+            return;
+        }
+        let parallelism = if threads > 1 { Parallelism::Rayon(threads) } else { Parallelism::None };
+        let stride = |s: usize| isize::try_from(s).expect("stride fits isize");
+        // SAFETY: the checks of `new` and the assert above keep every element gemm reads inside
+        // `lhs` and `rhs` and every element it writes inside `dst`, each written element distinct;
+        // `dst` is exclusively borrowed, so it cannot alias the inputs. gemm reads overlapping
+        // input views correctly.
+        unsafe {
+            gemm::gemm(
+                d.rows,
+                d.cols,
+                l.cols,
+                dst.as_mut_ptr().add(d.offset),
+                stride(d.col_stride),
+                stride(d.row_stride),
+                accumulate,
+                lhs.as_ptr().add(l.offset),
+                stride(l.col_stride),
+                stride(l.row_stride),
+                rhs.as_ptr().add(r.offset),
+                stride(r.col_stride),
+                stride(r.row_stride),
+                1.0,
+                1.0,
+                false,
+                false,
+                false,
+                parallelism,
+            );
+        }
+    }
+}
+
+/// `dst = lhs · rhs`, or `dst += lhs · rhs` when `accumulate`, on `threads` threads (1: the
+/// calling thread only): a [`Product`] made and run at once.
+///
+/// # Panics
+/// If the shapes disagree, a view leaves its slice, or the destination view aliases itself (the
+/// [`ViewError`]s of [`Product::new`]): programming errors of the caller, never data-dependent.
+#[allow(clippy::too_many_arguments)]
+pub fn matmul(dst: &mut [f32], d: View, accumulate: bool, lhs: &[f32], l: View, rhs: &[f32], r: View, threads: usize) {
+    match Product::new(dst.len(), d, lhs.len(), l, rhs.len(), r) {
+        Ok(product) => product.run(dst, accumulate, lhs, rhs, threads),
+        Err(e) => panic!("gemm::matmul: {e}"),
     }
 }
 
@@ -150,25 +211,26 @@ mod tests {
     }
 
     #[test]
-    #[should_panic(expected = "leaves a slice")]
     fn a_view_past_the_end_is_refused() {
-        let a = vec![0f32; 10];
-        let mut out = vec![0f32; 4];
-        matmul(&mut out, View::rows(0, 2, 2, 2), false, &a, View::rows(0, 2, 6, 6), &a, View::rows(0, 6, 2, 2), 1);
+        let l = View::rows(0, 2, 6, 6);
+        let refused = Product::new(4, View::rows(0, 2, 2, 2), 10, l, 10, View::rows(0, 6, 2, 2));
+        assert_eq!(refused, Err(ViewError::Outside { operand: "left", view: l, len: 10 }));
+        assert_eq!(refused.unwrap_err().to_string(), format!("left view {l:?} leaves a slice of 10"));
+        // Shapes that disagree are refused first.
+        let r = View::rows(0, 5, 2, 2);
+        assert!(matches!(Product::new(4, View::rows(0, 2, 2, 2), 100, l, 100, r), Err(ViewError::Shapes { .. })));
     }
 
     /// A view whose end overflows `usize`: unchecked, `offset + (rows-1)·row_stride + …` wraps
     /// (release builds) to a small number that passes the bounds check, and gemm would write far
     /// outside the slice. (Debug builds panicked on the overflow itself, with another message.)
     #[test]
-    #[should_panic(expected = "destination view")]
     fn a_destination_whose_end_overflows_is_refused() {
-        let a = vec![0f32; 4];
-        let mut out = vec![0f32; 4];
         // end = 0 + 1·2^63 + 1·2^63 + 1 wraps to 1, which fits a slice of 4.
         let huge = 1usize << (usize::BITS - 1);
         let d = View { offset: 0, rows: 2, cols: 2, row_stride: huge, col_stride: huge };
-        matmul(&mut out, d, false, &a, View::rows(0, 2, 1, 1), &a, View::rows(0, 1, 2, 2), 1);
+        let refused = Product::new(4, d, 4, View::rows(0, 2, 1, 1), 4, View::rows(0, 1, 2, 2));
+        assert_eq!(refused, Err(ViewError::Outside { operand: "destination", view: d, len: 4 }));
     }
 
     #[test]
@@ -189,10 +251,10 @@ mod tests {
     }
 
     #[test]
-    #[should_panic(expected = "addresses an element twice")]
     fn an_aliasing_destination_is_refused() {
-        let a = vec![0f32; 16];
-        let mut out = vec![0f32; 16];
-        matmul(&mut out, View::rows(0, 3, 3, 1), false, &a, View::rows(0, 3, 2, 2), &a, View::rows(0, 2, 3, 3), 1);
+        let d = View::rows(0, 3, 3, 1);
+        let refused = Product::new(16, d, 16, View::rows(0, 3, 2, 2), 16, View::rows(0, 2, 3, 3));
+        assert_eq!(refused, Err(ViewError::Aliases(d)));
+        assert!(refused.unwrap_err().to_string().contains("addresses an element twice"));
     }
 }

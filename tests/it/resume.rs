@@ -3,7 +3,7 @@
 //! actor process's), a restarted actor continues with new episodes, one process owns a run
 //! directory, and no actor outlives the `actor train` that started it.
 
-mod support;
+use crate::support;
 
 use std::path::Path;
 use std::process::Command;

@@ -3,7 +3,7 @@
 //! stops forwarding (what a SIGSTOPped learner looks like from the network) or that keeps one
 //! address across the learner's restart.
 
-mod support;
+use crate::support;
 
 use std::path::Path;
 use std::process::Command;

@@ -1,8 +1,6 @@
 //! The OpenDRIVE importer on real files (CARLA's Town01, esmini's roads): geometry against
 //! independent values, the lane graph, and bad input.
 
-mod common;
-
 use sim_core::map::{LaneKind, Map};
 
 fn data(name: &str) -> String {

@@ -2,7 +2,7 @@
 //! once and sends its content at Register; an actor started in another directory, after the file
 //! is gone, drives that town. A resumed run whose file changed is refused, naming both hashes.
 
-mod support;
+use crate::support;
 
 use agent::config::RunConfig;
 use learner::serve::{ServeOptions, start};

@@ -2,7 +2,7 @@
 //! stopped and resumed) and actor processes over loopback gRPC. Bounded in time: every wait has a
 //! deadline and fails with the status it last saw.
 
-mod support;
+use crate::support;
 
 use std::path::Path;
 use std::time::{Duration, Instant};

@@ -1,0 +1,7 @@
+//! learner's integration tests, one program (one link) with a module per subject.
+
+mod bounds;
+mod corridor;
+mod metrics;
+mod reliability;
+mod service;

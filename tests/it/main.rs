@@ -1,0 +1,12 @@
+//! The cross-process tests, one program (one link) built as a test of the `actor` package, so
+//! that they can start the `actor` binary; a module per subject. The chaos test is its own
+//! program (tests/chaos.rs: its own main, and slow).
+
+#[path = "../support/mod.rs"]
+mod support;
+
+mod actor_faults;
+mod dependencies;
+mod distributed;
+mod resume;
+mod run_map;
