@@ -138,7 +138,7 @@ impl Learner for LearnerService {
             }
             while let Some(item) = incoming.next().await {
                 // The replay ratio holds: nothing more is stored while the learner is behind.
-                crate::service::hold::until_learner_catches_up(&shared).await;
+                crate::service::backpressure::until_learner_catches_up(&shared).await;
                 if shared.stopping() {
                     // Refuse new work while stopping: the actor keeps the batch and resends it.
                     let _ = ordered.send(Err(Status::unavailable("the learner is stopping; retry shortly"))).await;

@@ -1,6 +1,6 @@
 //! The training thread: decoupled from ingestion, it trains as fast as the replay ratio allows
 //! (samples trained per transition inserted; the experience streams wait while it owes more than
-//! `service.update_lag_limit` updates, `service/hold.rs`), publishes weights every few updates and writes
+//! `service.update_lag_limit` updates, `service/backpressure.rs`), publishes weights every few updates and writes
 //! checkpoints on an interval — the first at most 30 s after it starts, so that an early SIGKILL
 //! loses little training. A checkpoint that cannot be written is retried with backoff (5 s
 //! doubling to 5 min) while training goes on, and shown in Status; a publication that fails is
