@@ -234,6 +234,7 @@ fn status(calls: u64) -> anyhow::Result<u64> {
         metrics: MetricsLog::open(dir.path())?,
         ratio_session: Mutex::new(None),
         ratio_baseline: Mutex::new(None),
+        backpressure: learner::service::backpressure::Backpressure::new(false),
         data_arrived: (Mutex::new(()), Condvar::new()),
         shutdown: Default::default(),
         elapsed_before: 0.0,

@@ -17,6 +17,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result, bail};
 
+use crate::service::backpressure::Backpressure;
 use crate::service::tls::ServerTls;
 use crate::state::{PublishedWeights, Shared, TrainStats};
 use crate::storage::checkpoint;
@@ -119,6 +120,7 @@ impl Running {
     /// and flushes the metrics. Returns the checkpoint's path.
     pub async fn stop(self) -> Result<PathBuf> {
         self.shared.shutdown.store(true, Ordering::SeqCst);
+        self.shared.backpressure.wake();
         let _ = self.stop_server.send(());
         // Graceful shutdown waits for open calls; actors' experience streams end at their next
         // batch (see `service.rs`), but do not wait on a silent one for ever.
@@ -148,9 +150,9 @@ pub async fn start(opts: ServeOptions) -> Result<Running> {
 }
 
 /// The training loop a learner runs (tests substitute one that fails).
-type Trainer = fn(&Arc<Shared>, Dqn, &Path) -> Result<Dqn>;
+pub(crate) type Trainer = fn(&Arc<Shared>, Dqn, &Path) -> Result<Dqn>;
 
-async fn start_with(opts: ServeOptions, train: Trainer) -> Result<Running> {
+pub(crate) async fn start_with(opts: ServeOptions, train: Trainer) -> Result<Running> {
     let OpenedRun { cfg, run_dir, lock } = run_dir::open(&opts)?;
     let map = RunMap::read(&cfg.env, cfg.service.max_message_bytes)?;
     if let Some(m) = &map {
@@ -221,6 +223,7 @@ async fn start_with(opts: ServeOptions, train: Trainer) -> Result<Running> {
         metrics: MetricsLog::open(&run_dir).with_context(|| format!("opening metrics files in {}", run_dir.display()))?,
         ratio_session: Mutex::new(ratio_session),
         ratio_baseline: Mutex::new(None),
+        backpressure: Backpressure::new(cfg.service.update_lag_limit > 0),
         data_arrived: (Mutex::new(()), Condvar::new()),
         shutdown: Default::default(),
         elapsed_before,
