@@ -316,6 +316,10 @@ mod tests {
         let st = c.status(pb::StatusRequest {}).await.unwrap().into_inner();
         println!("training: {woken} wake-ups for {} batches let through, {} updates", ACTORS * BATCHES, st.learner_step);
         assert!(woken <= 2 * (ACTORS * BATCHES) as u64, "{woken} wake-ups for {} batches", ACTORS * BATCHES);
+        // Every actor was held (all at once, above), and Status says so per actor.
+        let held: Vec<_> = st.actors.iter().filter(|a| a.name != "filler").map(|a| a.held_secs).collect();
+        assert_eq!(held.len(), ACTORS);
+        assert!(held.iter().all(|&s| s > 0.0), "held seconds per actor: {held:?}");
         running.stop().await.unwrap();
     }
 
