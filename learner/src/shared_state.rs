@@ -6,6 +6,7 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Condvar, Mutex, RwLock};
 use std::time::{Duration, Instant};
 
+use crate::service::backpressure::Backpressure;
 use crate::storage::replay::Replay;
 use crate::storage::replay_log::ReplayLog;
 use crate::storage::versions::VersionLease;
@@ -39,6 +40,8 @@ pub struct ActorRecord {
     pub rejected_batches: u64,
     pub epsilon: f32,
     pub dropped_steps: u64,
+    /// Seconds its experience streams were held for the replay ratio (counted as each hold ends).
+    pub held_secs: f64,
     /// Experience streams of this actor open now.
     pub open_streams: u32,
     pub registrations: u64,
@@ -65,6 +68,7 @@ impl ActorRecord {
             rejected_batches: 0,
             epsilon: 1.0,
             dropped_steps: 0,
+            held_secs: 0.0,
             open_streams: 0,
             registrations: 1,
             last_seq: None,
@@ -147,6 +151,9 @@ pub struct Shared {
     pub ratio_session: Mutex<Option<(u64, u64)>>,
     /// Where the replay ratio counts from, once training has started ([`Shared::updates_owed`]).
     pub ratio_baseline: Mutex<Option<RatioBaseline>>,
+    /// Holds experience streams while the training thread owes more than
+    /// `service.update_lag_limit` updates ([`Shared::may_store_a_batch`]).
+    pub backpressure: Backpressure,
     /// Wakes the training thread when transitions arrive.
     pub data_arrived: (Mutex<()>, Condvar),
     pub shutdown: AtomicBool,
@@ -200,6 +207,7 @@ impl Shared {
     pub fn new(start: SharedStart) -> Self {
         let SharedStart { cfg, map, replay, counters, weights, metrics, log, versions, ratio_session, resumed } = start;
         let shape = cfg.net_shape();
+        let backpressure = Backpressure::new(cfg.service.update_lag_limit > 0);
         Self {
             run_id: counters.run_id.clone(),
             elapsed_before: counters.elapsed_secs,
@@ -217,6 +225,7 @@ impl Shared {
             metrics,
             ratio_session: Mutex::new(ratio_session),
             ratio_baseline: Mutex::new(None),
+            backpressure,
             data_arrived: (Mutex::new(()), Condvar::new()),
             shutdown: AtomicBool::new(false),
             resumed,
@@ -264,6 +273,8 @@ impl Shared {
         });
         if first {
             tracing::error!(%reason, "the learner cannot go on: reporting NOT_SERVING and stopping");
+            // Held streams are refused at once rather than left waiting for a learner that is gone.
+            self.backpressure.wake();
         }
     }
 
@@ -305,6 +316,14 @@ impl Shared {
         let arrived = c.transitions_stored.saturating_sub(b.stored_at_fill);
         let allowed = (arrived as f64 * f64::from(a.replay_ratio) / a.batch_size as f64).floor() as u64;
         allowed.saturating_sub(c.learner_step.saturating_sub(b.updates_at_start))
+    }
+
+    /// Whether an experience stream may store its next batch now: the training thread owes at
+    /// most `service.update_lag_limit` updates, or the learner is stopping or has failed (the
+    /// batch is then refused, not held).
+    #[must_use]
+    pub fn may_store_a_batch(&self) -> bool {
+        self.updates_owed() <= self.cfg.service.update_lag_limit || self.stopping() || self.failure().is_some()
     }
 
     /// The newest weights.

@@ -221,6 +221,11 @@ enum BenchCommand {
         /// Serve and stream over mutual TLS (certificates made for the run): the cost of TLS.
         #[arg(long)]
         tls: bool,
+        /// Instead: N actors, each on its own connection, against a learner that trains (its
+        /// default configuration), with the replay ratio's hold on and then off: Status latency
+        /// (p50/p99, polled every 100 ms) and transitions stored per second.
+        #[arg(long, value_name = "N")]
+        actors: Option<usize>,
         /// Print one JSON object on the last line of stdout.
         #[arg(long)]
         json: bool,
@@ -399,11 +404,20 @@ fn main() -> Result<()> {
                 print_result(&v, json);
                 Ok(())
             }
-            Command::Bench(BenchCommand::Ingest { seconds, durability, tls, json }) => {
+            Command::Bench(BenchCommand::Ingest { seconds, durability, tls, actors, json }) => {
                 if !(seconds > 0.0 && seconds.is_finite()) {
                     anyhow::bail!("--seconds must be a positive number, not {seconds}");
                 }
                 use agent::config::Durability;
+                if let Some(n) = actors {
+                    if n == 0 || tls || durability == "both" {
+                        anyhow::bail!("--actors {n}: at least 1, without --tls, with --durability ack or none");
+                    }
+                    let durability = parse_durability(&durability).map_err(anyhow::Error::msg)?;
+                    let v = learner_cli::bench::many_actors(n, seconds, durability).await?;
+                    print_result(&v, json);
+                    return Ok(());
+                }
                 let modes = match durability.as_str() {
                     "both" => vec![Durability::None, Durability::Ack],
                     other => vec![parse_durability(other).map_err(anyhow::Error::msg)?],

@@ -111,7 +111,7 @@ pub fn table(report: &StatusReport) -> String {
         100.0 * collision_rate
     ));
     line(format!(
-        "{:<34} {:<12} {:>5} {:>9} {:>10} {:>8} {:>7} {:>12} {:>8} {:>7} {:>7} {:>8} {:>7}",
+        "{:<34} {:<12} {:>5} {:>9} {:>10} {:>8} {:>7} {:>12} {:>8} {:>7} {:>7} {:>8} {:>7} {:>8}",
         "actor",
         "name",
         "index",
@@ -124,7 +124,8 @@ pub fn table(report: &StatusReport) -> String {
         "streams",
         "regist.",
         "dropped",
-        "epsilon"
+        "epsilon",
+        "held"
     ));
     for a in actors {
         let ActorReport {
@@ -141,9 +142,10 @@ pub fn table(report: &StatusReport) -> String {
             registrations,
             dropped_steps,
             epsilon,
+            held_secs,
         } = a;
         line(format!(
-            "{actor_id:<34} {name:<12} {actor_index:>5} {connected:>9} {last_seen_secs:>9.1}s {weights_version:>8} {version_lag:>7} {transitions:>12} {rejected_batches:>8} {open_streams:>7} {registrations:>7} {dropped_steps:>8} {epsilon:>7.3}"
+            "{actor_id:<34} {name:<12} {actor_index:>5} {connected:>9} {last_seen_secs:>9.1}s {weights_version:>8} {version_lag:>7} {transitions:>12} {rejected_batches:>8} {open_streams:>7} {registrations:>7} {dropped_steps:>8} {epsilon:>7.3} {held_secs:>7.0}s"
         ));
     }
     out
@@ -181,6 +183,7 @@ mod tests {
             registrations: 9108,
             dropped_steps: 9109,
             epsilon: 0.125,
+            held_secs: 9110.0,
         };
         let s = pb::StatusResponse {
             run_id: "run-x".into(),
@@ -224,7 +227,7 @@ mod tests {
             held_secs: 9027.0,
         };
         let text = table(&StatusReport::from(s));
-        for n in (9001..=9027).chain(9101..=9109) {
+        for n in (9001..=9027).chain(9101..=9110) {
             assert!(text.contains(&n.to_string()), "{n} is missing from the table:\n{text}");
         }
         for t in ["run-x", "hybrid", "ack", "boom", "disk full", "bad seq", "actor-id-7", "west", "0.125", "0.375", "25%", "50%"] {

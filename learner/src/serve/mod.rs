@@ -16,6 +16,7 @@ use std::time::Duration;
 
 use anyhow::{Context, Result, bail};
 
+use crate::service::backpressure::Backpressure;
 use crate::service::tls::ServerTls;
 use crate::shared_state::{PublishedWeights, Shared, SharedStart};
 use crate::storage::checkpoint;
@@ -122,6 +123,7 @@ impl Running {
     /// and flushes the metrics. Returns the checkpoint's path.
     pub async fn stop(self) -> Result<PathBuf> {
         self.shared.shutdown.store(true, Ordering::SeqCst);
+        self.shared.backpressure.wake();
         let _ = self.stop_server.send(());
         // Graceful shutdown waits for open calls; actors' experience streams end at their next
         // batch (see `service.rs`), but do not wait on a silent one for ever.
@@ -151,9 +153,9 @@ pub async fn start(opts: ServeOptions) -> Result<Running> {
 }
 
 /// The training loop a learner runs (tests substitute one that fails).
-type Trainer = fn(&Arc<Shared>, Dqn, &Path) -> Result<Dqn>;
+pub(crate) type Trainer = fn(&Arc<Shared>, Dqn, &Path) -> Result<Dqn>;
 
-async fn start_with(opts: ServeOptions, train: Trainer) -> Result<Running> {
+pub(crate) async fn start_with(opts: ServeOptions, train: Trainer) -> Result<Running> {
     let OpenedRun { cfg, run_dir, lock } = run_dir::open(&opts)?;
     let map = RunMap::read(&cfg.env, cfg.service.max_message_bytes)?;
     if let Some(m) = &map {

@@ -1,8 +1,8 @@
 //! What actors talk to: the gRPC service and what it accepts from whom.
 
 pub mod auth;
+pub mod backpressure;
 pub mod bounds;
-pub mod hold;
 pub mod rpc;
 pub mod tls;
 pub mod validate;

@@ -138,29 +138,15 @@ impl Learner for LearnerService {
             }
             while let Some(item) = incoming.next().await {
                 // The replay ratio holds: nothing more is stored while the learner is behind.
-                crate::service::hold::until_learner_catches_up(&shared).await;
-                if shared.stopping() {
-                    // Refuse new work while stopping: the actor keeps the batch and resends it.
-                    let _ = ordered.send(Err(Status::unavailable("the learner is stopping; retry shortly"))).await;
-                    break;
-                }
-                let batch = match item {
-                    Ok(b) => b,
-                    Err(status) => {
-                        if let Some(refusal) = undecodable(&shared, &stream, &peer, &status) {
-                            let _ = ordered.send(Err(refusal)).await;
-                        }
-                        break;
-                    }
-                };
-                if stream.record.is_none() && !stream.attach(&batch.actor_id) {
-                    tracing::debug!(actor_id = %batch.actor_id, "batch from an unknown actor id: asked to register");
-                    let _ = ordered.send(Err(unknown_actor(&batch.actor_id))).await;
-                    break;
-                }
-                let result = store(&shared, batch);
-                let stop = result.is_err();
-                if ordered.send(result).await.is_err() || stop {
+                let admission = shared.backpressure.admit(|| shared.may_store_a_batch()).await;
+                let next = take(&shared, &mut stream, &peer, item);
+                note_held(&shared, stream.record, admission.waited());
+                // Let the next held stream through before waiting on the acknowledgements.
+                drop(admission);
+                // A refusal ends the stream; so does a stream that ended (nothing to answer).
+                let Some(result) = next else { break };
+                let last = result.is_err();
+                if ordered.send(result).await.is_err() || last {
                     break;
                 }
             }
@@ -223,6 +209,34 @@ impl Drop for OpenStream {
             let mut actors = self.shared.actors.lock().expect("actors lock");
             actors[k].open_streams = actors[k].open_streams.saturating_sub(1);
         }
+    }
+}
+
+/// What a stream answers to the message it received, once the replay ratio let it through: the
+/// batch stored, or the refusal that ends the stream; `None` when the stream merely ended. Binds
+/// the stream to its actor on its first batch.
+fn take(shared: &Shared, stream: &mut OpenStream, peer: &str, item: Result<pb::ExperienceBatch, Status>) -> Option<Result<Stored, Status>> {
+    if shared.stopping() {
+        // Refuse new work while stopping: the actor keeps the batch and resends it.
+        return Some(Err(Status::unavailable("the learner is stopping; retry shortly")));
+    }
+    let batch = match item {
+        Ok(b) => b,
+        Err(status) => return undecodable(shared, stream, peer, &status).map(Err),
+    };
+    if stream.record.is_none() && !stream.attach(&batch.actor_id) {
+        tracing::debug!(actor_id = %batch.actor_id, "batch from an unknown actor id: asked to register");
+        return Some(Err(unknown_actor(&batch.actor_id)));
+    }
+    Some(store(shared, batch))
+}
+
+/// Adds the time a stream was held to the run's and its actor's `held_secs`.
+fn note_held(shared: &Shared, record: Option<usize>, waited: Option<Duration>) {
+    let Some(secs) = waited.map(|w| w.as_secs_f64()) else { return };
+    shared.stats.lock().expect("stats lock").held_secs += secs;
+    if let Some(k) = record {
+        shared.actors.lock().expect("actors lock")[k].held_secs += secs;
     }
 }
 
@@ -522,6 +536,7 @@ pub fn status(shared: &Shared) -> pb::StatusResponse {
             registrations: a.registrations,
             dropped_steps: a.dropped_steps,
             epsilon: a.epsilon,
+            held_secs: a.held_secs,
         })
         .collect();
     let window = shared.recent_episodes.lock().expect("episodes lock");

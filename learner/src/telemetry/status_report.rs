@@ -97,6 +97,8 @@ pub struct ActorReport {
     pub registrations: u64,
     pub dropped_steps: u64,
     pub epsilon: f32,
+    /// Seconds its streams waited for the replay ratio (counted as each wait ends).
+    pub held_secs: f64,
 }
 
 impl From<pb::StatusResponse> for StatusReport {
@@ -195,6 +197,7 @@ impl From<pb::ActorStatus> for ActorReport {
             registrations,
             dropped_steps,
             epsilon,
+            held_secs,
         } = a;
         Self {
             actor_id,
@@ -210,6 +213,7 @@ impl From<pb::ActorStatus> for ActorReport {
             registrations,
             dropped_steps,
             epsilon,
+            held_secs,
         }
     }
 }
@@ -311,6 +315,7 @@ pub const NOT_EXPORTED_PER_ACTOR: &[(&str, &str)] = &[
     ("/open_streams", "shown by `learner status`"),
     ("/registrations", "shown by `learner status`"),
     ("/dropped_steps", "shown by `learner status`"),
+    ("/held_secs", "shown by `learner status`; sums to learner_held_seconds"),
 ];
 
 #[cfg(test)]

@@ -148,6 +148,10 @@ pub fn run(shared: &Arc<Shared>, mut dqn: Dqn, run_dir: &std::path::Path) -> any
             s.mean_q = q_ema;
         }
         shared.counters.lock().expect("counters lock").learner_step = dqn.updates;
+        // The first held batch that the ratio allows goes through now, not at some later look.
+        if shared.may_store_a_batch() {
+            shared.backpressure.wake();
+        }
         if dqn.updates.is_multiple_of(a.publish_every_updates)
             && let Err(e) = publish(shared, &dqn)
         {
@@ -171,6 +175,7 @@ impl Drop for ClearBaselineOnExit<'_> {
                 *b = None;
             }
         }
+        self.0.backpressure.wake();
     }
 }
 

@@ -4,10 +4,12 @@
 pub mod candle;
 pub mod ingest;
 pub mod machine;
+pub mod many_actors;
 pub mod update;
 pub mod whole_loop;
 
 pub use ingest::ingest;
+pub use many_actors::many_actors;
 pub use update::train;
 pub use whole_loop::whole_loop;
 
