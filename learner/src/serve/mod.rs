@@ -16,7 +16,6 @@ use std::time::Duration;
 
 use anyhow::{Context, Result, bail};
 
-use crate::service::backpressure::Backpressure;
 use crate::service::tls::ServerTls;
 use crate::shared_state::{PublishedWeights, Shared, SharedStart};
 use crate::storage::checkpoint;

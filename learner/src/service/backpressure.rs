@@ -263,7 +263,7 @@ mod tests {
             }
             std::thread::sleep(Duration::from_millis(10));
         }
-        crate::training::train::run(shared, dqn, run_dir)
+        crate::training::trainer::run(shared, dqn, run_dir)
     }
 
     /// Issue 52: a few hundred actors held by the replay ratio, each on its own connection. While
