@@ -83,9 +83,7 @@ fn main() -> Result<()> {
     proto::program::init_logging();
     let cli = Cli::parse();
     match cli.command {
-        Some(Command::Train(args)) => {
-            proto::program::runtime()?.block_on(runner::run(&args))
-        }
+        Some(Command::Train(args)) => proto::program::runtime()?.block_on(runner::run(&args)),
         Some(Command::Drive(args)) => tools::drive::run(&args),
         Some(Command::Eval(args)) => eval::run(&args),
         Some(Command::Predict(args)) => tools::predict::run(&args),
