@@ -7,6 +7,7 @@ use anyhow::{Context, Result, bail};
 use proto::v1 as pb;
 
 use super::machine::load_average;
+use super::synthetic_actor::SyntheticActor;
 use agent::config::{Durability, RunConfig};
 use learner::serve::{ServeOptions, start};
 
@@ -88,41 +89,14 @@ pub async fn ingest_one(seconds: f64, durability: Durability, tls: bool) -> Resu
     let target = proto::client::Target::new(&running.addr.to_string(), target, false)?;
     let mut client = proto::client::connect_to(&target, None).await?;
     let reg = client.register(pb::RegisterRequest { name: "bench".into(), envs: 1, protocol: proto::v1::PROTOCOL }).await?.into_inner();
-    let frame = vec![100u8; 84 * 84];
-    let actor_id = reg.actor_id.clone();
-    let (mut episode, mut t) = (0u64, 0u32);
-    let mut make_batch = move |seq: u64| {
-        let steps = (0..64)
-            .map(|_| {
-                let s = pb::Step {
-                    env: 0,
-                    episode,
-                    t,
-                    obs: Some(pb::Observation { image: frame.clone(), speed: 1.0, d: 0.5, path: Vec::new() }),
-                    action: 1,
-                    reward: 0.1,
-                    terminated: false,
-                    truncated: t == 199,
-                };
-                t += 1;
-                if t == 200 {
-                    t = 0;
-                    episode += 1;
-                }
-                s
-            })
-            .collect();
-        pb::ExperienceBatch { actor_id: actor_id.clone(), seq, steps, episodes: vec![], weights_version: 1, epsilon: 1.0, dropped_steps: 0 }
-    };
+    let mut actor = SyntheticActor::new(reg.actor_id.clone());
     // Keep a window of batches in flight: a pipelined stream, as actors send.
     let (tx, rx) = tokio::sync::mpsc::channel::<pb::ExperienceBatch>(8);
     let mut acks = client.stream_experience(tokio_stream::wrappers::ReceiverStream::new(rx)).await?.into_inner();
     let deadline = Instant::now() + Duration::from_secs_f64(seconds);
     let producer = tokio::spawn(async move {
-        let mut seq = 0u64;
         while Instant::now() < deadline {
-            seq += 1;
-            if tx.send(make_batch(seq)).await.is_err() {
+            if tx.send(actor.next_batch(64)).await.is_err() {
                 break;
             }
         }

@@ -9,6 +9,7 @@ use proto::v1 as pb;
 use tokio::time::timeout_at;
 
 use super::machine::{cpu_model, load_average};
+use super::synthetic_actor::SyntheticActor;
 use agent::config::{Durability, RunConfig};
 use learner::serve::{ServeOptions, start};
 
@@ -117,34 +118,12 @@ async fn one_run(actors: usize, seconds: f64, durability: Durability, limit: u64
 
 /// Streams batches (two in flight, as an actor's outbox sends them) until `deadline`.
 async fn stream_until(client: &mut proto::client::Client, actor_id: String, deadline: tokio::time::Instant) -> Result<()> {
-    let frame = vec![100u8; 84 * 84];
     let (tx, rx) = tokio::sync::mpsc::channel::<pb::ExperienceBatch>(2);
     let mut acks = client.stream_experience(tokio_stream::wrappers::ReceiverStream::new(rx)).await?.into_inner();
     let producer = tokio::spawn(async move {
-        let (mut episode, mut t, mut seq) = (0u64, 0u32, 0u64);
+        let mut actor = SyntheticActor::new(actor_id);
         loop {
-            let steps = (0..BATCH_STEPS)
-                .map(|_| {
-                    let s = pb::Step {
-                        env: 0,
-                        episode,
-                        t,
-                        obs: Some(pb::Observation { image: frame.clone(), speed: 1.0, d: 0.5, path: Vec::new() }),
-                        action: 1,
-                        reward: 0.1,
-                        terminated: false,
-                        truncated: t == 199,
-                    };
-                    t += 1;
-                    if t == 200 {
-                        (t, episode) = (0, episode + 1);
-                    }
-                    s
-                })
-                .collect();
-            seq += 1;
-            let batch =
-                pb::ExperienceBatch { actor_id: actor_id.clone(), seq, steps, weights_version: 1, epsilon: 1.0, ..Default::default() };
+            let batch = actor.next_batch(BATCH_STEPS);
             if tx.send(batch).await.is_err() {
                 break;
             }

@@ -5,6 +5,7 @@ pub mod candle;
 pub mod ingest;
 pub mod machine;
 pub mod many_actors;
+pub mod synthetic_actor;
 pub mod update;
 pub mod whole_loop;
 
