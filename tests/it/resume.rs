@@ -266,6 +266,10 @@ async fn a_truncated_newest_checkpoint_resumes_from_the_previous_one() {
 /// of the highest selection score so far, across a resume, and `actor eval` drives them.
 #[test]
 fn actor_train_keeps_the_best_weights_of_its_periodic_evaluations_across_a_resume() {
+    // Slow: two `actor train` sessions of a fixed time each, for periodic evaluations to happen.
+    if crate::slow::skip() {
+        return;
+    }
     let dir = tempfile::tempdir().unwrap();
     let mut cfg = config(&dir.path().join("run"), "127.0.0.1:0");
     cfg.env.hazards.rate = 0.5;

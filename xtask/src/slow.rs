@@ -20,8 +20,22 @@ pub struct Target {
 }
 
 /// Every slow test, by target. Each is slow because it runs for a long time on purpose: a
-/// schedule of faults, or a network trained for hundreds of updates until it has learned.
+/// schedule of faults, an outage, or training sessions of a fixed time.
 pub const SUITE: &[Target] = &[
     // A learner and 3 actors under 3 minutes of faults.
     Target { package: "actor", target: "chaos", file: "tests/chaos.rs", tests: &[] },
+    // A learner away 17 s, for the actor's reconnect wait to grow before it returns.
+    Target {
+        package: "actor",
+        target: "it",
+        file: "tests/it/actor_faults.rs",
+        tests: &["actor_faults::an_actor_registers_again_as_soon_as_a_restarted_learner_answers"],
+    },
+    // Two `actor train` sessions of a fixed time, for periodic evaluations and `best/`.
+    Target {
+        package: "actor",
+        target: "it",
+        file: "tests/it/resume.rs",
+        tests: &["resume::actor_train_keeps_the_best_weights_of_its_periodic_evaluations_across_a_resume"],
+    },
 ];
