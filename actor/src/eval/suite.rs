@@ -15,7 +15,7 @@ use anyhow::{Context, Result, bail};
 use serde::Serialize;
 use sim_core::env::Env;
 use sim_core::expert::Expert;
-use sim_core::hazards::{HazardKind, HazardsConfig};
+use sim_core::hazards::{HazardKind, HazardsConfig, episodes};
 use sim_core::planner::PlannerKind;
 use sim_core::scenario::{EvalRoute, Scenario};
 
@@ -55,11 +55,6 @@ impl Suite {
 
 /// The hazard kinds the suite drives: every kind, one scenario each.
 pub const SUITE_KINDS: [HazardKind; 7] = HazardKind::ALL;
-
-/// Random routes of hazard scenarios, metres: long enough for a hazard 45–75 m in and room after.
-const HAZARD_ROUTE_LENGTH: (f32, f32) = (120.0, 220.0);
-/// Steps of a hazard run (60 s: room to wait, pass and be blocked).
-const HAZARD_TIME_LIMIT: u32 = 600;
 
 /// The `model-based-avoid` baseline.
 #[must_use]
@@ -174,8 +169,7 @@ pub fn evaluate_suite(agents: &mut [Agent], opts: &SuiteOptions) -> Result<Suite
             cfg.planner = planner;
             if let Some(kind) = spec.hazard {
                 cfg.hazards = HazardsConfig::only(kind);
-                (cfg.route_length_min, cfg.route_length_max) = HAZARD_ROUTE_LENGTH;
-                cfg.time_limit = HAZARD_TIME_LIMIT;
+                episodes::use_suite_episodes(&mut cfg);
             }
             let mut envs: Vec<Env> = (0..opts.runs)
                 .map(|_| Env::new(opts.town.clone(), cfg.clone()))

@@ -11,6 +11,7 @@
 
 pub mod config;
 pub mod cut_in;
+pub mod episodes;
 pub mod kind;
 pub mod prop;
 pub mod runner;
