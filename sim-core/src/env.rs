@@ -7,7 +7,7 @@ use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::Serialize;
 
-use crate::camera::{BirdsEye, Camera, Image, SceneBox, car_box, prop_box, walker_box};
+use crate::camera::{BirdsEye, Camera, FrameStack, Image, SceneBox, car_box, prop_box, walker_box};
 use crate::collision::{CollisionKind, Obb, leaves_drivable_area};
 use crate::config::{ConfigError, EnvConfig, Variant};
 use crate::hash::Fnv1a64;
@@ -36,7 +36,8 @@ pub struct Observation {
     /// The planner's path relative to the ego vehicle (hybrid variant only): see
     /// [`Env::path_features`].
     pub path: Option<[f32; PATH_FEATURES]>,
-    /// The front camera's image, if a camera is configured.
+    /// The front camera's image, if a camera is configured: its last `stack` frames stacked
+    /// ([`Env::stacked_image`]).
     #[serde(skip)]
     pub image: Option<Image>,
 }
@@ -117,6 +118,8 @@ pub struct Env {
     last_info: StepInfo,
     camera: Option<Camera>,
     image: Image,
+    /// The last frames, with `[env.camera] stack` > 1.
+    frames: Option<FrameStack>,
     /// Scratch: the vehicles as the renderers see them.
     scene: Vec<SceneBox>,
 }
@@ -126,6 +129,7 @@ impl Env {
     pub fn new(town: Arc<Town>, cfg: EnvConfig) -> Result<Self, EnvError> {
         cfg.validate()?;
         let camera = cfg.camera.as_ref().map(Camera::new).transpose()?;
+        let frames = cfg.camera.as_ref().filter(|c| c.stack > 1).map(|c| FrameStack::new(c.stack as usize));
         let planner_kind = cfg.planner;
         let traffic = Traffic::empty(&town, cfg.traffic.idm, cfg.vehicle);
         let dummy = crate::route::Route {
@@ -167,6 +171,7 @@ impl Env {
             },
             camera,
             image: Image::new(0, 0, 1),
+            frames,
             scene: Vec::new(),
         };
         env.reset(0, Scenario::Random)?;
@@ -245,6 +250,9 @@ impl Env {
         self.update_planner();
         self.last_info = self.info_now(None, false, RewardTerms::default());
         self.render();
+        if let Some(f) = &mut self.frames {
+            f.reset(&self.image);
+        }
         Ok(self.observation())
     }
 
@@ -287,6 +295,9 @@ impl Env {
         self.done = terminated || truncated;
         self.last_info = self.info_now(collision, arrived, terms);
         self.render();
+        if let Some(f) = &mut self.frames {
+            f.push(&self.image);
+        }
         Ok(StepResult { observation: self.observation(), reward: terms.total, terminated, truncated, info: self.last_info.clone() })
     }
 
@@ -297,7 +308,7 @@ impl Env {
             speed: self.ego.speed,
             d: (self.cfg.variant == Variant::Hybrid).then(|| self.planned_tracking().d),
             path: (self.cfg.variant == Variant::Hybrid).then(|| self.path_features()),
-            image: self.camera.is_some().then(|| self.image.clone()),
+            image: self.camera.is_some().then(|| self.stacked_image().clone()),
         }
     }
 
@@ -372,6 +383,13 @@ impl Env {
     #[must_use]
     pub fn image(&self) -> &Image {
         &self.image
+    }
+
+    /// What the network sees of the camera: the last `[env.camera] stack` frames stacked
+    /// (`camera::FrameStack`), or the last image when the stack is 1.
+    #[must_use]
+    pub fn stacked_image(&self) -> &Image {
+        self.frames.as_ref().map_or(&self.image, FrameStack::image)
     }
 
     /// Renders the bird's-eye debug view around the ego vehicle.

@@ -36,6 +36,9 @@ pub struct CameraConfig {
     pub pitch_deg: f32,
     /// Nothing farther than this is drawn, metres.
     pub max_distance: f32,
+    /// Frames the observation holds: the last `stack` images, oldest first, interleaved per pixel
+    /// (`FrameStack`), so that motion is observable. 1 is a single frame, the paper's.
+    pub stack: u32,
 }
 
 impl Default for CameraConfig {
@@ -49,6 +52,7 @@ impl Default for CameraConfig {
             mount_forward: 1.0,
             pitch_deg: 8.0,
             max_distance: 150.0,
+            stack: 1,
         }
     }
 }
@@ -58,6 +62,12 @@ impl CameraConfig {
     #[must_use]
     pub fn channels(&self) -> u8 {
         if self.rgb { 3 } else { 1 }
+    }
+
+    /// Bytes per pixel of the stacked observation: `channels()` × `stack`.
+    #[must_use]
+    pub fn stacked_channels(&self) -> usize {
+        usize::from(self.channels()) * self.stack as usize
     }
 
     /// Checks every field; the error names it (prefixed `camera.`).
@@ -83,9 +93,15 @@ impl CameraConfig {
         if !(self.max_distance.is_finite() && self.max_distance >= 10.0) {
             return err("max_distance", format!("{} m must be at least 10", self.max_distance));
         }
+        if !(1..=MAX_STACK).contains(&self.stack) {
+            return err("stack", format!("{} frames is outside 1..={MAX_STACK} (1: a single frame)", self.stack));
+        }
         Ok(())
     }
 }
+
+/// Most frames an observation may stack.
+pub const MAX_STACK: u32 = 8;
 
 /// Nearest depth drawn, metres.
 const NEAR: f32 = 0.1;

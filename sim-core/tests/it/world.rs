@@ -350,3 +350,32 @@ fn both_towns_routes_are_of_their_type() {
         }
     }
 }
+
+#[test]
+fn a_stacked_observation_holds_the_last_frames_oldest_first() {
+    let town = Town::default_town();
+    let camera = sim_core::camera::CameraConfig { width: 16, height: 16, stack: 3, ..Default::default() };
+    let mut env = env_with(&town, EnvConfig { camera: Some(camera), ..EnvConfig::default() });
+    let obs = env.reset(4, Scenario::Random).unwrap();
+    let first = env.image().clone();
+    let stacked = obs.image.unwrap();
+    assert_eq!((stacked.width, stacked.height, stacked.channels), (16, 16, 3));
+    // At the start every frame of the stack is the first.
+    assert!(stacked.data.chunks_exact(3).zip(&first.data).all(|(px, &f)| px == [f, f, f]));
+    let mut history = vec![first.clone(), first.clone(), first];
+    for step in 1..=4 {
+        let stacked = env.step(FULL_THROTTLE).unwrap().observation.image.unwrap();
+        history.remove(0);
+        history.push(env.image().clone());
+        let want: Vec<u8> = (0..256).flat_map(|p| [history[0].data[p], history[1].data[p], history[2].data[p]]).collect();
+        assert_eq!(stacked.data, want, "after {step} steps");
+    }
+    assert_ne!(history[0], history[2], "the frames differ: the test would pass on a stack of copies");
+    // A stack of one is the camera's image, as before stacking existed.
+    let mut single = env_with(
+        &town,
+        EnvConfig { camera: Some(sim_core::camera::CameraConfig { width: 16, height: 16, ..Default::default() }), ..EnvConfig::default() },
+    );
+    let obs = single.reset(4, Scenario::Random).unwrap();
+    assert_eq!(obs.image.as_ref(), Some(single.image()));
+}
