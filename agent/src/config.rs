@@ -411,12 +411,20 @@ impl RunConfig {
         NetShape {
             height: cam.height as usize,
             width: cam.width as usize,
-            channels: usize::from(cam.channels()),
+            channels: cam.stacked_channels(),
             scalars: self.scalar_inputs(),
             actions: self.agent.action_set.actions().len(),
             filters: self.agent.conv_filters,
             hidden: self.agent.hidden,
         }
+    }
+
+    /// Bytes of one camera frame as an actor sends it and the replay stores it (`H × W × C`); the
+    /// network's input holds `[env.camera] stack` of them. Validation guarantees a camera.
+    #[must_use]
+    pub fn frame_bytes(&self) -> usize {
+        let cam = self.env.camera.as_ref().expect("validated: a camera is configured");
+        cam.width as usize * cam.height as usize * usize::from(cam.channels())
     }
 
     /// A run small enough to train in seconds, for tests and smoke runs: a 16×16 gray camera,

@@ -207,6 +207,7 @@ impl Shared {
     pub fn new(start: SharedStart) -> Self {
         let SharedStart { cfg, map, replay, counters, weights, metrics, log, versions, ratio_session, resumed } = start;
         let shape = cfg.net_shape();
+        let frame_bytes = cfg.frame_bytes();
         let backpressure = Backpressure::new(cfg.service.update_lag_limit > 0);
         Self {
             run_id: counters.run_id.clone(),
@@ -215,7 +216,7 @@ impl Shared {
             map,
             started: Instant::now(),
             shape,
-            frame_bytes: shape.height * shape.width * shape.channels,
+            frame_bytes,
             replay: Mutex::new(replay),
             counters: Mutex::new(counters),
             weights: RwLock::new(weights),

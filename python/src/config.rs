@@ -111,10 +111,11 @@ impl SimConfig {
         Ok(Self { town, env, scenario, route, actions: set.actions(), path_features, birdseye, birdseye_size, map })
     }
 
-    /// `(height, width, channels)` of the camera image, or `None` without a camera.
+    /// `(height, width, channels)` of the camera observation (channels × `stack` frames), or
+    /// `None` without a camera.
     #[getter]
-    fn camera_shape(&self) -> Option<(u32, u32, u8)> {
-        self.env.camera.as_ref().map(|c| (c.height, c.width, c.channels()))
+    fn camera_shape(&self) -> Option<(u32, u32, usize)> {
+        self.env.camera.as_ref().map(|c| (c.height, c.width, c.stacked_channels()))
     }
 
     /// The highest speed the ego vehicle reaches, m/s.

@@ -164,7 +164,7 @@ impl VecSim {
         let n = rows.len();
         let dict = PyDict::new(py);
         if let Some(c) = &cfg.env.camera {
-            let shape = (n, c.height as usize, c.width as usize, usize::from(c.channels()));
+            let shape = (n, c.height as usize, c.width as usize, c.stacked_channels());
             let mut camera = Vec::with_capacity(shape.0 * shape.1 * shape.2 * shape.3);
             for r in rows {
                 camera.extend_from_slice(&r.observation.image.as_ref().expect("a camera is configured").data);

@@ -91,11 +91,11 @@ pub fn load_checkpoint(path: &Path) -> Result<GreedyAgent> {
 /// forward pass of the Q-network (the actors' fast path; the first of equal Q values).
 pub fn greedy_actions(agent: &mut GreedyAgent, envs: &[&Env]) -> Vec<u32> {
     let scalars: Vec<f32> = envs.iter().flat_map(|e| scalar_features(&agent.cfg, &env_scalars(e))).collect();
-    agent.net.greedy(envs.iter().map(|e| e.image().data.as_slice()), &scalars)
+    agent.net.greedy(envs.iter().map(|e| e.stacked_image().data.as_slice()), &scalars)
 }
 
-/// The Q values (one per action) of one observation: an image (`H × W × C` bytes, as the camera
-/// renders it) and the network's scalar inputs (`agent::features::scalar_features`).
+/// The Q values (one per action) of one observation: an image (`H × W × C·stack` bytes, the
+/// camera's stacked frames, `Env::stacked_image`) and the network's scalar inputs (`agent::features::scalar_features`).
 pub fn q_values(agent: &mut GreedyAgent, image: &[u8], scalars: &[f32]) -> Vec<f32> {
     agent.net.q_values([image], scalars).to_vec()
 }

@@ -6,7 +6,6 @@ use std::time::Instant;
 
 use agent::config::RunConfig;
 use anyhow::{Context, Result, bail};
-use sim_core::camera::CameraConfig;
 use sim_core::config::{EnvConfig, Variant};
 use sim_core::env::Env;
 use sim_core::scenario::Scenario;
@@ -47,16 +46,32 @@ impl Driver {
     }
 }
 
-/// The environment every agent is evaluated in: the `paper` preset's, scored with the paper's
-/// reward (hybrid variant), with the agent's camera.
-pub(crate) fn eval_env_config(camera: Option<CameraConfig>, traffic: Option<usize>) -> EnvConfig {
+/// The environment every agent is evaluated in: the `paper` preset's world, scored with the
+/// paper's reward (hybrid variant), driven with the agent's own body — the vehicle and the camera
+/// (with its stack) of the checkpoint's configuration; its action set comes with its network.
+/// The baselines (`body` none) drive the default vehicle without a camera.
+pub(crate) fn eval_env_config(body: Option<&EnvConfig>, traffic: Option<usize>) -> EnvConfig {
     let mut env = RunConfig::preset("paper").expect("the paper preset exists").env;
     env.variant = Variant::Hybrid;
-    env.camera = camera;
+    env.camera = body.and_then(|b| b.camera.clone());
+    if let Some(b) = body {
+        env.vehicle = b.vehicle;
+    }
     if let Some(n) = traffic {
         env.traffic.vehicles = n;
     }
     env
+}
+
+impl Driver {
+    /// The configuration of the agent's own body, for a checkpoint (see [`eval_env_config`]).
+    #[must_use]
+    pub fn body(&self) -> Option<&EnvConfig> {
+        match self {
+            Driver::ModelBased(_) => None,
+            Driver::Greedy(g) => Some(&g.cfg.env),
+        }
+    }
 }
 
 /// What to evaluate and how.
@@ -89,11 +104,8 @@ pub fn evaluate(agents: &mut [Agent], opts: &EvalOptions) -> Result<Report> {
     let mut done = 0usize;
     let mut reports = Vec::new();
     for agent in agents.iter_mut() {
-        let camera = match &agent.driver {
-            Driver::ModelBased(_) => None,
-            Driver::Greedy(g) => g.cfg.env.camera.clone(),
-        };
-        let cfg = eval_env_config(camera.clone(), opts.traffic);
+        let cfg = eval_env_config(agent.driver.body(), opts.traffic);
+        let camera = cfg.camera.clone();
         let traffic_vehicles = cfg.traffic.vehicles;
         let mut envs: Vec<Env> =
             (0..opts.runs).map(|_| Env::new(town.clone(), cfg.clone())).collect::<Result<_, _>>().context("creating the environments")?;
@@ -130,7 +142,10 @@ pub fn evaluate(agents: &mut [Agent], opts: &EvalOptions) -> Result<Report> {
             kind,
             variant,
             checkpoint,
-            camera: camera.map(|c| format!("{}x{} {}", c.width, c.height, if c.rgb { "rgb" } else { "gray" })),
+            camera: camera.map(|c| {
+                let frames = if c.stack > 1 { format!(" x{} frames", c.stack) } else { String::new() };
+                format!("{}x{} {}{frames}", c.width, c.height, if c.rgb { "rgb" } else { "gray" })
+            }),
             epsilon: EPSILON,
             seed: opts.seed,
             traffic_vehicles,

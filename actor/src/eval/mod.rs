@@ -84,6 +84,15 @@ pub struct EvalArgs {
     /// as docs/figures/hazards-episode.svg (`scripts/episode_figure.py`).
     #[arg(long, value_name = "FILE", requires = "suite")]
     pub trajectories_out: Option<PathBuf>,
+    /// With --suite: the baselines drive with this action set only, every control replaced by
+    /// its nearest action (`paper6`, `paper12`, `full15`; docs/EVALUATION.md): the ceiling of a
+    /// set, what its actions let a driver that knows how to drive keep.
+    #[arg(long, value_name = "SET", requires = "suite", value_parser = parse_action_set)]
+    pub quantise: Option<sim_core::actions::ActionSet>,
+}
+
+fn parse_action_set(name: &str) -> std::result::Result<sim_core::actions::ActionSet, String> {
+    sim_core::actions::ActionSet::from_name(name)
 }
 
 /// The name of a checkpoint in the table: its run directory's name.
@@ -160,6 +169,13 @@ fn add_checkpoints(args: &EvalArgs, agents: &mut Vec<Agent>) -> Result<()> {
 fn run_suite(args: &EvalArgs, name: &str) -> Result<()> {
     let suite = Suite::from_name(name)?;
     let mut agents = vec![model_based(), model_based_avoid()];
+    if let Some(set) = args.quantise {
+        for a in &mut agents {
+            let Driver::ModelBased(p) = &mut a.driver else { unreachable!("the baselines drive a policy") };
+            *p = p.clone().quantised(set);
+        }
+        eprintln!("the baselines' controls are quantised to the {} actions of `{}`", set.actions().len(), set.name());
+    }
     add_checkpoints(args, &mut agents)?;
     let town = town_by_name_or_file(&args.town)?;
     let opts = SuiteOptions {
@@ -170,6 +186,7 @@ fn run_suite(args: &EvalArgs, name: &str) -> Result<()> {
         town,
         progress: true,
         trajectories: args.trajectories_out.is_some(),
+        quantise: args.quantise,
     };
     eprintln!(
         "scoring {} agent(s) on suite `{}` of {} × {} run(s) (seeds {}..), greedy (ε = {EPSILON})",

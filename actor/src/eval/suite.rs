@@ -13,6 +13,7 @@ use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
 use serde::Serialize;
+use sim_core::actions::ActionSet;
 use sim_core::env::Env;
 use sim_core::expert::Expert;
 use sim_core::hazards::{HazardKind, HazardsConfig, episodes};
@@ -65,7 +66,7 @@ pub fn model_based_avoid() -> Agent {
 /// The planner an agent drives with.
 fn planner_of(agent: &Agent) -> PlannerKind {
     match &agent.driver {
-        Driver::ModelBased(Policy::Expert(e)) if e.sees_hazards => PlannerKind::AstarAvoid,
+        Driver::ModelBased(p) if p.sees_hazards() => PlannerKind::AstarAvoid,
         Driver::ModelBased(_) => PlannerKind::Astar,
         Driver::Greedy(g) => g.cfg.env.planner,
     }
@@ -100,6 +101,8 @@ pub struct SuiteOptions {
     pub progress: bool,
     /// Keep every run's trajectory (`SuiteReport::trajectories`).
     pub trajectories: bool,
+    /// The baselines drive with this action set's actions only (`--quantise`).
+    pub quantise: Option<ActionSet>,
 }
 
 /// One scenario's scores for one agent.
@@ -129,12 +132,15 @@ pub struct SuiteAgentReport {
     pub scenarios: Vec<ScenarioReport>,
 }
 
-/// `{"suite", "town", "runs", "agents": [...]}`.
+/// `{"suite", "town", "runs", "quantise"?, "agents": [...]}`.
 #[derive(Debug, Clone, Serialize)]
 pub struct SuiteReport {
     pub suite: &'static str,
     pub town: String,
     pub runs: u32,
+    /// The action set the baselines' controls were quantised to (`--quantise`), if any.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub quantise: Option<&'static str>,
     pub agents: Vec<SuiteAgentReport>,
     /// Every run's trajectory, agent by agent and scenario by scenario, when asked for.
     #[serde(skip)]
@@ -159,13 +165,9 @@ pub fn evaluate_suite(agents: &mut [Agent], opts: &SuiteOptions) -> Result<Suite
     let mut trajectories = Vec::new();
     for agent in agents.iter_mut() {
         let planner = planner_of(agent);
-        let camera = match &agent.driver {
-            Driver::ModelBased(_) => None,
-            Driver::Greedy(g) => g.cfg.env.camera.clone(),
-        };
         let mut scenario_reports = Vec::new();
         for spec in &specs {
-            let mut cfg = eval_env_config(camera.clone(), opts.traffic);
+            let mut cfg = eval_env_config(agent.driver.body(), opts.traffic);
             cfg.planner = planner;
             if let Some(kind) = spec.hazard {
                 cfg.hazards = HazardsConfig::only(kind);
@@ -222,7 +224,14 @@ pub fn evaluate_suite(agents: &mut [Agent], opts: &SuiteOptions) -> Result<Suite
             scenarios: scenario_reports,
         });
     }
-    Ok(SuiteReport { suite: opts.suite.name(), town: opts.town.map.name.clone(), runs: opts.runs, agents: reports, trajectories })
+    Ok(SuiteReport {
+        suite: opts.suite.name(),
+        town: opts.town.map.name.clone(),
+        runs: opts.runs,
+        quantise: opts.quantise.map(ActionSet::name),
+        agents: reports,
+        trajectories,
+    })
 }
 
 /// Drives one run per environment (run k with seed `seed + k`) in lockstep, ending a run when it
@@ -379,6 +388,7 @@ mod tests {
             town: sim_core::town::Town::default_town(),
             progress: false,
             trajectories: false,
+            quantise: None,
         }
     }
 

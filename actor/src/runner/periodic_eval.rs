@@ -91,7 +91,8 @@ pub fn score_weights(cfg: &RunConfig, weights: &[u8], town: &str, runs: u32, see
     let mut agents = vec![Agent { name: "current".into(), driver: Driver::Greedy(Box::new(agent)) }];
     let town = Town::embedded(town).ok_or_else(|| anyhow::anyhow!("unknown town `{town}`"))?;
     let mut suite = |suite| -> Result<SuiteAgentReport> {
-        let opts = SuiteOptions { suite, runs, seed, traffic: None, town: town.clone(), progress: false, trajectories: false };
+        let opts =
+            SuiteOptions { suite, runs, seed, traffic: None, town: town.clone(), progress: false, trajectories: false, quantise: None };
         let mut report = evaluate_suite(&mut agents, &opts)?;
         Ok(report.agents.remove(0))
     };

@@ -45,10 +45,15 @@ pub fn step_loop(
     let mut returns = vec![0f64; n];
     let mut pending: Vec<pb::Step> = Vec::new();
     let mut summaries: Vec<pb::EpisodeSummary> = Vec::new();
-    // The wire form of an observation (it takes the image the environment already copied out).
-    let wire = |o: sim_core::env::Observation| -> pb::Observation {
+    // The wire form of an observation: the newest frame only (it takes the image the environment
+    // already copied out when that is the frame); the learner's replay stacks frames itself.
+    let wire = |o: sim_core::env::Observation, newest: &sim_core::camera::Image| -> pb::Observation {
         pb::Observation {
-            image: o.image.map(|i| i.data).unwrap_or_default(),
+            image: match o.image {
+                Some(i) if i.channels == newest.channels => i.data,
+                Some(_) => newest.data.clone(),
+                None => Vec::new(),
+            },
             speed: o.speed,
             d: o.d.unwrap_or(0.0),
             path: o.path.map(Vec::from).unwrap_or_default(),
@@ -62,7 +67,7 @@ pub fn step_loop(
             tracing::info!(episode_stream, first_episode_seed = seed, "environments starting");
         }
         env.reset(seed, Scenario::Random)?;
-        pending.push(pb::Step { env: k as u32, episode: 0, t: 0, obs: Some(wire(env.observation())), ..pb::Step::default() });
+        pending.push(pb::Step { env: k as u32, episode: 0, t: 0, obs: Some(wire(env.observation(), env.image())), ..pb::Step::default() });
     }
     let mut total_steps = 0u64;
     while !link.stop.load(Ordering::SeqCst) {
@@ -72,7 +77,7 @@ pub fn step_loop(
         }
         // One batched forward pass for all environments.
         let scalars: Vec<f32> = envs.iter().flat_map(|e| agent::features::scalar_features(cfg, &agent::features::env_scalars(e))).collect();
-        let greedy = net.greedy(envs.iter().map(|e| e.image().data.as_slice()), &scalars);
+        let greedy = net.greedy(envs.iter().map(|e| e.stacked_image().data.as_slice()), &scalars);
         let epsilon = cfg.epsilon(index, link.run_env_steps(total_steps));
         for (k, env) in envs.iter_mut().enumerate() {
             let a = if rng.random::<f32>() < epsilon { rng.random_range(0..actions.len()) as u32 } else { greedy[k] };
@@ -83,7 +88,7 @@ pub fn step_loop(
                 env: k as u32,
                 episode: episode[k],
                 t: t[k],
-                obs: Some(wire(r.observation)),
+                obs: Some(wire(r.observation, env.image())),
                 action: a,
                 reward: r.reward,
                 terminated: r.terminated,
@@ -107,7 +112,7 @@ pub fn step_loop(
                     env: k as u32,
                     episode: episode[k],
                     t: 0,
-                    obs: Some(wire(env.observation())),
+                    obs: Some(wire(env.observation(), env.image())),
                     ..pb::Step::default()
                 });
             }

@@ -36,7 +36,8 @@ pub struct PredictArgs {
     #[arg(long, value_name = "FILE.png")]
     pub save_frame: Option<PathBuf>,
     /// Observe this camera frame instead: a PNG of the checkpoint's camera size, 8-bit gray or RGB
-    /// as the checkpoint's camera.
+    /// as the checkpoint's camera (a checkpoint that sees a stack of frames gets it repeated: a
+    /// still scene).
     #[arg(long, value_name = "FILE.png", requires = "speed", conflicts_with_all = ["route", "save_frame"])]
     pub frame: Option<PathBuf>,
     /// With --frame: the ego speed, m/s.
@@ -144,7 +145,7 @@ fn observe_route(agent: &GreedyAgent, name: &str, step: u32, seed: u64, save: Op
         crate::tools::record::write_png(path, env.image())?;
     }
     Ok(Observed {
-        image: env.image().data.clone(),
+        image: env.stacked_image().data.clone(),
         raw: agent::features::env_scalars(&env),
         source: json!({"route": name, "step": step, "seed": seed, "frame": save}),
     })
@@ -153,15 +154,17 @@ fn observe_route(agent: &GreedyAgent, name: &str, step: u32, seed: u64, save: Op
 /// Reads a frame and the scalars the user gave.
 fn observe_frame(agent: &GreedyAgent, path: &Path, args: &PredictArgs) -> Result<Observed> {
     let shape = agent.cfg.net_shape();
+    let camera = agent.cfg.env.camera.as_ref().context("the checkpoint has no camera")?;
+    let (frame_channels, stack) = (usize::from(camera.channels()), camera.stack as usize);
     let image = read_png(path)?;
     let (w, h, c) = (image.0, image.1, image.2);
-    if (w, h, c) != (shape.width, shape.height, shape.channels) {
+    if (w, h, c) != (shape.width, shape.height, frame_channels) {
         bail!(
             "--frame {}: {w}x{h} with {c} channel(s), but the checkpoint's camera is {}x{} {} — give a frame of that size",
             path.display(),
             shape.width,
             shape.height,
-            if shape.channels == 1 { "gray (8-bit grayscale PNG)" } else { "RGB (8-bit RGB PNG)" }
+            if frame_channels == 1 { "gray (8-bit grayscale PNG)" } else { "RGB (8-bit RGB PNG)" }
         );
     }
     let speed = args.speed.context("--frame needs --speed (m/s)")?;
@@ -179,7 +182,10 @@ fn observe_frame(agent: &GreedyAgent, path: &Path, args: &PredictArgs) -> Result
         (false, Some(_)) => bail!("--path: this checkpoint does not see path features (agent.path_features = false); leave it out"),
         (false, None) => [0.0; PATH_FEATURES],
     };
-    Ok(Observed { image: image.3, raw: raw_scalars(speed, d, path_features), source: json!({"frame": path, "speed_mps": speed, "d_m": d}) })
+    // A checkpoint that sees a stack of frames gets the one frame as a still scene: repeated.
+    let mut stacked = Vec::new();
+    sim_core::camera::interleave_frames(&vec![image.3.as_slice(); stack], frame_channels, &mut stacked);
+    Ok(Observed { image: stacked, raw: raw_scalars(speed, d, path_features), source: json!({"frame": path, "speed_mps": speed, "d_m": d}) })
 }
 
 /// An 8-bit gray or RGB PNG: width, height, channels and the pixels row by row.

@@ -181,7 +181,7 @@ pub(crate) async fn start_with(opts: ServeOptions, train: Trainer) -> Result<Run
     }
     std::fs::write(run_dir.join("config.toml"), cfg.to_toml()).with_context(|| format!("writing {}/config.toml", run_dir.display()))?;
 
-    let frame_bytes = shape.height * shape.width * shape.channels;
+    let frame_bytes = cfg.frame_bytes();
     let a = &cfg.agent;
     let mut replay = Replay::new(ReplayConfig {
         capacity: a.replay_capacity,
