@@ -43,37 +43,39 @@ pub enum RewardKind {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct RewardConfig {
-    /// `paper` (the paper's eq. 4–8) or `progress` (route progress, soft penalties, a collision
-    /// penalty growing with speed).
+    /// Which reward: `paper` (the paper's equations 4–8) or `progress` (route progress, soft
+    /// penalties, a collision penalty growing with speed).
     pub kind: RewardKind,
-    /// Reward of a collision step, r_c (`paper`).
+    /// `paper`: reward of a collision step, r_c.
     pub collision: f32,
-    /// Reward of the arrival step (`paper`).
+    /// `paper`: reward of the arrival step.
     pub arrival: f32,
     /// Arrival radius ε around the destination, metres.
     pub arrival_radius: f32,
-    /// Desired speed v0, km/h (`paper`'s r_v; `progress`'s target: a step at v0 earns 1).
+    /// Desired speed v0, km/h. `paper`: the speed term's v0; `progress`: the target speed, a step
+    /// at v0 along the route earns 1 and a faster one no more.
     pub v0_kmh: f32,
-    /// Waypoint distance scale d0, metres (`paper`).
+    /// `paper`: waypoint distance scale d0, metres.
     pub d0: f32,
-    /// Weight β_v of the speed term (`paper`).
+    /// `paper`: weight β_v of the speed term.
     pub beta_v: f32,
-    /// Weight β_l of the progress term (`paper`).
+    /// `paper`: weight β_l of the progress term.
     pub beta_l: f32,
-    /// Weight β_w of the waypoint term (`paper`).
+    /// `paper`: weight β_w of the waypoint term.
     pub beta_w: f32,
     /// If set, the per-step shaped reward (not collision or arrival) is clipped to ±this.
     pub clip: Option<f32>,
-    /// Reward of a collision at standstill (`progress`); a faster one costs more.
+    /// `progress`: reward of a collision at standstill. A faster one costs `collision_per_speed`
+    /// more per m/s.
     pub progress_collision: f32,
-    /// Taken off the collision reward per m/s of ego speed at the collision (`progress`).
+    /// `progress`: taken off the collision reward per m/s of ego speed at the collision.
     pub collision_per_speed: f32,
-    /// Reward of the arrival step (`progress`).
+    /// `progress`: reward of the arrival step.
     pub progress_arrival: f32,
-    /// Weight of the lane penalty per step, hybrid variant only (`progress`).
+    /// `progress`: weight of the lane penalty per step, hybrid variant only.
     pub lane_weight: f32,
-    /// Lateral offset from the planner's path that costs nothing, metres (`progress`); beyond
-    /// it the lane penalty grows by `lane_weight` per dead zone's width.
+    /// `progress`: lateral offset from the planner's path that costs nothing, metres. Beyond it
+    /// the lane penalty grows by `lane_weight` per dead zone's width.
     pub lane_dead_zone: f32,
 }
 
