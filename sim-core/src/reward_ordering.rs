@@ -37,8 +37,8 @@ pub enum Case {
 }
 
 impl Case {
-    /// The hazard kinds a stalled-car, closure or walker ranking is checked on, and the clean
-    /// routes.
+    /// The cases checked: a car stopped in the lane, a lane closure and a walker crossing (the
+    /// hazards a driver must stop for or drive round), and the clean routes.
     pub const ALL: [Case; 4] = [
         Case::Hazard(HazardKind::StalledCar),
         Case::Hazard(HazardKind::Construction),
