@@ -1,5 +1,5 @@
 //! An episode of driving: `reset(seed, scenario)` and `step(action)`, returning the observation,
-//! the paper's reward, termination (collision, arrival), truncation (time limit) and diagnostics.
+//! the reward (`reward.rs`), termination (collision, arrival), truncation (time limit) and diagnostics.
 
 use std::sync::Arc;
 
@@ -19,7 +19,7 @@ use crate::math::{Vec2, left_normal};
 pub use crate::path_features::PATH_FEATURES;
 use crate::path_features::{path_features, path_features_along};
 use crate::planner::{Detour, LocalPlanner, Planner, WorldView};
-use crate::reward::{Outcome, RewardTerms};
+use crate::reward::{Outcome, RewardTerms, StepMeasures};
 use crate::route::{Route, RouteTracker, Tracking};
 use crate::scenario::{Scenario, eval_route, random_route};
 use crate::town::Town;
@@ -108,6 +108,8 @@ pub struct Env {
     steps: u32,
     time_limit: u32,
     l_prev: f32,
+    /// The route arc length before the step (the progress reward's Δs).
+    s_prev: f32,
     /// Steps since the environment was created (orders junction requests).
     clock: u64,
     ego_hold: Option<LaneId>,
@@ -153,6 +155,7 @@ impl Env {
             steps: 0,
             time_limit: 1,
             l_prev: 0.0,
+            s_prev: 0.0,
             clock: 0,
             ego_hold: None,
             ego_request: None,
@@ -220,6 +223,7 @@ impl Env {
         self.steps = 0;
         self.time_limit = time_limit;
         self.l_prev = start.distance(self.route.destination());
+        self.s_prev = self.tracking.s;
         self.ego_hold = None;
         self.ego_request = None;
         self.right_of_way_violations = 0;
@@ -287,9 +291,19 @@ impl Env {
             (None, true) => Outcome::Arrived,
             (None, false) => Outcome::Driving,
         };
-        let d = self.planned_tracking().d;
-        let terms = self.cfg.reward.reward(self.cfg.variant, outcome, self.ego.speed, l, self.l_prev, d);
+        let planned = self.planned_tracking();
+        let measures = StepMeasures {
+            speed: self.ego.speed,
+            l,
+            l_prev: self.l_prev,
+            d: planned.d,
+            ds: self.tracking.s - self.s_prev,
+            lateral: planned.lateral,
+            dt,
+        };
+        let terms = self.cfg.reward.reward(self.cfg.variant, outcome, &measures);
         self.l_prev = l;
+        self.s_prev = self.tracking.s;
         let terminated = outcome != Outcome::Driving;
         let truncated = !terminated && self.steps >= self.time_limit;
         self.done = terminated || truncated;

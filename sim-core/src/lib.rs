@@ -19,6 +19,7 @@ pub mod path_features;
 pub mod planner;
 pub mod polyline;
 pub mod reward;
+pub mod reward_ordering;
 pub mod route;
 pub mod route_types;
 pub mod scenario;

@@ -46,8 +46,8 @@ pub struct EnvConfig {
     /// Steps before an evaluation route is truncated. Longer than `time_limit`: waiting at junctions
     /// takes time.
     pub eval_time_limit: u32,
-    /// The paper's reward: r = β_v·r_v + β_l·r_l + β_w·r_w per step, collision and arrival
-    /// rewards at the end.
+    /// The reward: the paper's (`kind = "paper"`, the default: r = β_v·r_v + β_l·r_l + β_w·r_w
+    /// per step, collision and arrival rewards at the end) or route progress (`kind = "progress"`).
     pub reward: RewardConfig,
     /// Other cars.
     pub traffic: TrafficConfig,

@@ -5,4 +5,5 @@ mod hazards;
 mod map_loader;
 mod opendrive;
 mod planner;
+mod reward_ordering;
 mod world;
