@@ -18,7 +18,7 @@ pub fn interleave_frames(frames: &[&[u8]], channels: usize, out: &mut Vec<u8>) {
     let Some(first) = frames.first() else { return };
     let len = first.len();
     assert!(
-        len % channels == 0 && frames.iter().all(|f| f.len() == len),
+        len.is_multiple_of(channels) && frames.iter().all(|f| f.len() == len),
         "frames of a stack are whole pixels of {channels} channels, all of one size"
     );
     if frames.len() == 1 {

@@ -193,7 +193,7 @@ impl Replay {
     pub fn new(cfg: ReplayConfig) -> Self {
         assert!(cfg.stack >= 1 && cfg.channels >= 1, "replay: stack {} and channels {} must be at least 1", cfg.stack, cfg.channels);
         assert!(
-            cfg.frame_bytes % cfg.channels == 0,
+            cfg.frame_bytes.is_multiple_of(cfg.channels),
             "replay: frames of {} bytes are not whole pixels of {} channels",
             cfg.frame_bytes,
             cfg.channels
