@@ -145,6 +145,8 @@ fn replay_for(cfg: &RunConfig, frame: usize) -> Replay {
         capacity: 4_000,
         max_bytes: a.replay_max_bytes,
         frame_bytes: frame,
+        channels: cfg.net_shape().channels,
+        stack: 1,
         gamma: a.gamma,
         n_step: a.n_step,
         prioritized: a.prioritized_replay,

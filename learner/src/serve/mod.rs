@@ -187,6 +187,8 @@ pub(crate) async fn start_with(opts: ServeOptions, train: Trainer) -> Result<Run
         capacity: a.replay_capacity,
         max_bytes: a.replay_max_bytes,
         frame_bytes,
+        channels: shape.channels,
+        stack: 1,
         gamma: a.gamma,
         n_step: a.n_step,
         prioritized: a.prioritized_replay,

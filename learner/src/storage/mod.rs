@@ -2,6 +2,7 @@
 //! files of a run directory.
 
 pub mod checkpoint;
+pub mod frame_stack;
 pub mod replay;
 pub mod replay_log;
 pub mod run_lock;

@@ -10,6 +10,16 @@
 //! transition is retired on the spot (a tombstone in the FIFO, priority 0); sampling also checks
 //! every frame id it reads against the ring's live range (the generation check). A transition is
 //! never sampled with another frame than its own.
+//!
+//! Frame stacks (`stack` N > 1): the network sees a transition's last N frames, but actors send,
+//! and the ring stores, one frame per step. Each frame remembers its predecessor in its stream's
+//! episode (none at the episode's first frame), and sampling walks those links back to assemble
+//! the stack ([`interleave_frames`]'s layout, the episode's first frame standing in for frames
+//! before it). Retirement widens with it: when the ring overwrites frame f, the transitions that
+//! observe f or one of its next N − 1 successors in the stream are retired, since their stacks
+//! hold f. That covers the `next` stacks too (see [`Replay::push_frame`]). A frame whose
+//! predecessor never arrived (a break in the stream) has a stack that cannot be assembled: the
+//! transitions that would need it are not formed.
 
 use std::collections::{HashMap, VecDeque};
 
@@ -18,6 +28,7 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use sim_core::env::PATH_FEATURES;
 
+use crate::storage::frame_stack::interleave_frames;
 use crate::storage::sum_tree::SumTree;
 
 /// Sizes and options of a replay buffer.
@@ -27,8 +38,13 @@ pub struct ReplayConfig {
     pub capacity: usize,
     /// Bytes the frames and transitions may take.
     pub max_bytes: u64,
-    /// Bytes of one camera frame.
+    /// Bytes of one camera frame (H·W·C, row-major, C channels interleaved per pixel).
     pub frame_bytes: usize,
+    /// Channels of a frame (C): a stack interleaves its frames per pixel, C bytes at a time.
+    pub channels: usize,
+    /// Frames per observation (N ≥ 1): a sampled image holds the transition's frame and the N − 1
+    /// before it in its episode, N·`frame_bytes` bytes. 1 is no stacking.
+    pub stack: usize,
     pub gamma: f32,
     pub n_step: usize,
     pub prioritized: bool,
@@ -69,6 +85,18 @@ struct Transition {
     discount: f32,
 }
 
+/// What precedes a frame in its stream's episode.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+enum Pred {
+    /// Nothing: it is the episode's first frame, which stands in for the frames before it.
+    #[default]
+    Start,
+    /// The frame with this id (which may have left the ring since).
+    Frame(u64),
+    /// A frame that never reached the replay (a break in the stream): no stack reaches past it.
+    Missing,
+}
+
 /// Where a stream (one environment of one actor) stands.
 #[derive(Debug, Clone, Default)]
 struct Stream {
@@ -80,12 +108,22 @@ struct Stream {
     pending: VecDeque<(u64, u32, f32)>,
 }
 
+/// Why a frame stack cannot be assembled.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Gone {
+    /// A frame of it left the ring.
+    Overwritten,
+    /// It reaches past a break in its stream, to a frame that never arrived.
+    NeverStored,
+}
+
 /// Transitions sampled for an update.
 #[derive(Debug, Clone, Default)]
 pub struct Sample {
     /// Positions in the buffer, for priority updates.
     pub slots: Vec<usize>,
-    /// Frames, concatenated, `frame_bytes` each.
+    /// Observations, concatenated, `stack`·`frame_bytes` each: the stacked frames interleaved
+    /// per pixel, oldest first ([`interleave_frames`]).
     pub images: Vec<u8>,
     pub next_images: Vec<u8>,
     /// The raw scalars of each observation.
@@ -107,6 +145,10 @@ pub struct Replay {
     frame_scalars: Vec<RawScalars>,
     /// Per frame slot: 1 + the id of the transition whose observation it is, or 0.
     observed_by: Vec<u64>,
+    /// Per frame slot, with stacks only (empty for `stack` 1): the frame's predecessor in its
+    /// stream's episode, and 1 + the id of its successor, or 0.
+    pred: Vec<Pred>,
+    succ: Vec<u64>,
     frame_slots: usize,
     /// Ids of the oldest and next frame.
     first_frame: u64,
@@ -133,12 +175,30 @@ fn frame_cost(frame_bytes: usize) -> u64 {
 /// Per-transition bookkeeping bytes (counted against the byte cap).
 const TRANSITION_BYTES: u64 = std::mem::size_of::<Transition>() as u64 + 8;
 
+/// Per-frame links kept with stacks (counted against the byte cap with the frame).
+const LINK_BYTES: u64 = std::mem::size_of::<Pred>() as u64 + 8;
+
+/// Bytes a stored frame takes under `cfg`: the frame itself, once, and its links if stacking.
+fn stored_frame_cost(cfg: &ReplayConfig) -> u64 {
+    frame_cost(cfg.frame_bytes) + if cfg.stack > 1 { LINK_BYTES } else { 0 }
+}
+
 impl Replay {
     /// An empty buffer. Frame slots: enough for the capacity plus one per 8 transitions (episode
     /// starts), or fewer if the byte cap says so.
     #[must_use]
+    ///
+    /// # Panics
+    /// If `stack` or `channels` is 0, or `frame_bytes` is not whole pixels of `channels`.
     pub fn new(cfg: ReplayConfig) -> Self {
-        let per_frame = frame_cost(cfg.frame_bytes);
+        assert!(cfg.stack >= 1 && cfg.channels >= 1, "replay: stack {} and channels {} must be at least 1", cfg.stack, cfg.channels);
+        assert!(
+            cfg.frame_bytes.is_multiple_of(cfg.channels),
+            "replay: frames of {} bytes are not whole pixels of {} channels",
+            cfg.frame_bytes,
+            cfg.channels
+        );
+        let per_frame = stored_frame_cost(&cfg);
         let by_bytes = (cfg.max_bytes.saturating_sub(cfg.capacity as u64 * TRANSITION_BYTES) / per_frame.max(1)) as usize;
         let frame_slots = (cfg.capacity + cfg.capacity / 8 + 64).min(by_bytes).max(2);
         let priorities = cfg.prioritized.then(|| SumTree::new(cfg.capacity));
@@ -147,6 +207,8 @@ impl Replay {
             frames: vec![0; frame_slots * cfg.frame_bytes],
             frame_scalars: vec![RawScalars::default(); frame_slots],
             observed_by: vec![0; frame_slots],
+            pred: vec![Pred::Start; if cfg.stack > 1 { frame_slots } else { 0 }],
+            succ: vec![0; if cfg.stack > 1 { frame_slots } else { 0 }],
             frame_slots,
             first_frame: 0,
             next_frame: 0,
@@ -213,7 +275,7 @@ impl Replay {
     /// Bytes in use (frames held and transitions).
     #[must_use]
     pub fn bytes(&self) -> u64 {
-        let frames = (self.next_frame - self.first_frame) * frame_cost(self.cfg.frame_bytes);
+        let frames = (self.next_frame - self.first_frame) * stored_frame_cost(&self.cfg);
         frames + self.transitions.len() as u64 * TRANSITION_BYTES
     }
 
@@ -228,10 +290,15 @@ impl Replay {
     pub fn add_steps(&mut self, actor: &str, steps: &[StepRecord<'_>]) -> usize {
         let mut stored = 0;
         for s in steps {
-            let frame = self.push_frame(s.image, raw_scalars(s.speed, s.d, s.path));
             let key = (actor.to_owned(), s.env);
             let mut stream = self.streams.remove(&key).unwrap_or_default();
             let continues = s.t > 0 && stream.last_frame.is_some() && stream.episode == s.episode && stream.t + 1 == s.t;
+            let pred = match stream.last_frame {
+                Some(prev) if continues => Pred::Frame(prev),
+                _ if s.t == 0 => Pred::Start,
+                _ => Pred::Missing,
+            };
+            let frame = self.push_frame(s.image, raw_scalars(s.speed, s.d, s.path), pred);
             if continues {
                 let prev = stream.last_frame.expect("checked above");
                 stream.pending.push_back((prev, s.action, s.reward));
@@ -265,15 +332,29 @@ impl Replay {
             g *= self.cfg.gamma;
         }
         stream.pending.pop_front();
-        if obs < self.first_frame {
-            self.evicted += 1;
-            return 0; // its frame was overwritten already
+        match self.walk_stack(obs, |_| {}) {
+            Ok(()) => {}
+            Err(Gone::Overwritten) => {
+                self.evicted += 1;
+                return 0; // a frame of its stack was overwritten already
+            }
+            Err(Gone::NeverStored) => return 0, // its stack reaches into a break in the stream
         }
         self.push_transition(Transition { dead: false, obs, next, action, reward, discount: if terminal { 0.0 } else { g } });
         1
     }
 
-    fn push_frame(&mut self, image: &[u8], scalars: RawScalars) -> u64 {
+    /// Stores a frame whose predecessor in its stream is `pred`, overwriting the oldest if the
+    /// ring is full.
+    ///
+    /// Overwriting frame f retires every transition whose observation stack holds f: the
+    /// observers of f and of its next `stack` − 1 successors in the stream (a stack is a frame and
+    /// the `stack` − 1 before it). The `next` stacks need nothing more. A transition's `next`
+    /// frame comes after its `obs` frame in the same episode, so every frame of the `next` stack
+    /// is at least as new as the oldest frame o of the `obs` stack. The ring overwrites frames in
+    /// id order, so f is the oldest frame held, and a live transition's o is held: if f is in its
+    /// `next` stack then o ≤ f, so o = f and the `obs` stack holds f too.
+    fn push_frame(&mut self, image: &[u8], scalars: RawScalars, pred: Pred) -> u64 {
         let id = self.next_frame;
         let slot = (id % self.frame_slots as u64) as usize;
         let fb = self.cfg.frame_bytes;
@@ -282,11 +363,33 @@ impl Replay {
         // The frame that lived in this slot is gone: so is the transition that observed it,
         // wherever it sits in the FIFO (streams interleave, so not necessarily at the front).
         let observer = std::mem::take(&mut self.observed_by[slot]);
+        let successor = if self.cfg.stack > 1 { std::mem::take(&mut self.succ[slot]) } else { 0 };
         if self.next_frame - self.first_frame >= self.frame_slots as u64 {
             let gone = self.first_frame;
             self.first_frame += 1;
             if let Some(tid) = observer.checked_sub(1) {
                 self.retire(tid, gone);
+            }
+            // With stacks, so are the observers of its successors whose stacks reach back to it.
+            let mut next = successor;
+            for _ in 1..self.cfg.stack {
+                let Some(f) = next.checked_sub(1) else { break };
+                // Successors are newer than the frame just overwritten, hence still held.
+                debug_assert!(self.holds_frame(f));
+                let s = self.slot(f);
+                if let Some(tid) = self.observed_by[s].checked_sub(1) {
+                    self.retire(tid, f);
+                }
+                next = self.succ[s];
+            }
+        }
+        if self.cfg.stack > 1 {
+            self.pred[slot] = pred;
+            if let Pred::Frame(p) = pred
+                && self.holds_frame(p)
+            {
+                let s = self.slot(p);
+                self.succ[s] = id + 1;
             }
         }
         self.next_frame += 1;
@@ -337,8 +440,54 @@ impl Replay {
         }
     }
 
+    /// The ring slot of frame `id`.
+    fn slot(&self, id: u64) -> usize {
+        (id % self.frame_slots as u64) as usize
+    }
+
+    /// Visits the ids of the stack whose newest frame is `newest`, newest first: `newest` and the
+    /// `stack` − 1 frames before it in its episode, the episode's first frame repeated where the
+    /// episode is shorter. Every id is checked against the ring before its slot is read.
+    fn walk_stack(&self, newest: u64, mut visit: impl FnMut(u64)) -> Result<(), Gone> {
+        let mut cur = newest;
+        for k in 0..self.cfg.stack {
+            if !self.holds_frame(cur) {
+                return Err(Gone::Overwritten);
+            }
+            visit(cur);
+            if k + 1 == self.cfg.stack {
+                break;
+            }
+            match self.pred[self.slot(cur)] {
+                Pred::Start => {}
+                Pred::Frame(p) => cur = p,
+                Pred::Missing => return Err(Gone::NeverStored),
+            }
+        }
+        Ok(())
+    }
+
+    /// The ids of the stack whose newest frame is `newest`, oldest first, into `ids` (cleared
+    /// first); see [`Self::walk_stack`].
+    fn stack_of(&self, newest: u64, ids: &mut Vec<u64>) -> Result<(), Gone> {
+        ids.clear();
+        self.walk_stack(newest, |id| ids.push(id))?;
+        ids.reverse();
+        Ok(())
+    }
+
+    /// Appends the stack of `ids` (oldest first) to `out`, in [`interleave_frames`]'s layout.
+    fn put_stack(&self, ids: &[u64], out: &mut Vec<u8>) {
+        if let &[id] = ids {
+            out.extend_from_slice(self.frame(id).0);
+            return;
+        }
+        let frames: Vec<&[u8]> = ids.iter().map(|&id| self.frame(id).0).collect();
+        interleave_frames(&frames, self.cfg.channels, out);
+    }
+
     fn frame(&self, id: u64) -> (&[u8], RawScalars) {
-        let slot = (id % self.frame_slots as u64) as usize;
+        let slot = self.slot(id);
         let fb = self.cfg.frame_bytes;
         (&self.frames[slot * fb..(slot + 1) * fb], self.frame_scalars[slot])
     }
@@ -384,23 +533,23 @@ impl Replay {
         let len = self.len();
         let mut out = Sample::default();
         let mut probs = Vec::with_capacity(n);
+        let (mut obs_ids, mut next_ids) = (Vec::with_capacity(self.cfg.stack), Vec::with_capacity(self.cfg.stack));
         for _ in 0..n {
             let (k, p) = self.draw();
             let t = self.transitions[k];
+            let held = self.stack_of(t.obs, &mut obs_ids).and_then(|()| self.stack_of(t.next, &mut next_ids));
             assert!(
-                self.holds_frame(t.obs) && self.holds_frame(t.next),
-                "replay: transition {k} refers to frames {}→{} outside the ring [{}, {})",
+                held.is_ok(),
+                "replay: transition {k} refers to frames {}→{} whose stacks leave the ring [{}, {}): {held:?}",
                 t.obs,
                 t.next,
                 self.first_frame,
                 self.next_frame
             );
-            let (img, sc) = self.frame(t.obs);
-            out.images.extend_from_slice(img);
-            out.scalars.push(sc);
-            let (img, sc) = self.frame(t.next);
-            out.next_images.extend_from_slice(img);
-            out.next_scalars.push(sc);
+            self.put_stack(&obs_ids, &mut out.images);
+            out.scalars.push(self.frame(t.obs).1);
+            self.put_stack(&next_ids, &mut out.next_images);
+            out.next_scalars.push(self.frame(t.next).1);
             out.actions.push(t.action);
             out.rewards.push(t.reward);
             out.discounts.push(t.discount);
@@ -440,6 +589,8 @@ mod tests {
             capacity,
             max_bytes: 1 << 30,
             frame_bytes: 4,
+            channels: 1,
+            stack: 1,
             gamma: 0.5,
             n_step: 1,
             prioritized: false,
@@ -640,5 +791,283 @@ mod tests {
         // The favoured transition has the smallest importance weight.
         let w_fav = s2.weights[s2.slots.iter().position(|&x| x == s.slots[0]).unwrap()];
         assert!(s2.weights.iter().all(|&w| w >= w_fav - 1e-6));
+    }
+
+    /// A frame that says where it comes from, in two pixels of two channels: pixel 0 is (stream,
+    /// episode), pixel 1 is t (little-endian).
+    fn tagged(stream: u8, episode: u8, t: u16) -> [u8; 4] {
+        let [lo, hi] = t.to_le_bytes();
+        [stream, episode, lo, hi]
+    }
+
+    /// The (stream, episode, t) of each frame of a stacked image of tagged frames, oldest first.
+    fn untag(image: &[u8], stack: usize) -> Vec<(u8, u8, u16)> {
+        (0..stack)
+            .map(|k| {
+                let pixel = |p: usize| &image[p * 2 * stack + 2 * k..p * 2 * stack + 2 * k + 2];
+                (pixel(0)[0], pixel(0)[1], u16::from_le_bytes([pixel(1)[0], pixel(1)[1]]))
+            })
+            .collect()
+    }
+
+    /// The stack that ends at step `t` of an episode: the `stack` steps up to t, step 0 repeated
+    /// where the episode is shorter.
+    fn expected_stack(stream: u8, episode: u8, t: u16, stack: usize) -> Vec<(u8, u8, u16)> {
+        (0..stack).map(|k| (stream, episode, t.saturating_sub((stack - 1 - k) as u16))).collect()
+    }
+
+    /// A step of stream `env` carrying `image`, its speed the step index.
+    fn tagged_step(env: u32, episode: u64, t: u32, image: &[u8], end: Option<bool>) -> StepRecord<'_> {
+        StepRecord {
+            env,
+            episode,
+            t,
+            image,
+            speed: t as f32,
+            d: env as f32,
+            path: [0.0; PATH_FEATURES],
+            action: t % 3,
+            reward: 1.0,
+            terminated: end == Some(true),
+            truncated: end == Some(false),
+        }
+    }
+
+    /// Checks every transition of a sample of tagged frames: its observation is the stack that
+    /// ends at its frame, its next observation the stack that ends 1 to `n_step` steps later in
+    /// the same stream and episode, and its scalars are its own frame's. Returns the (stream,
+    /// episode, t) of each observation.
+    fn check_stacks(s: &Sample, stack: usize, n_step: u16) -> Vec<(u8, u8, u16)> {
+        let size = 4 * stack;
+        assert_eq!((s.images.len(), s.next_images.len()), (s.actions.len() * size, s.actions.len() * size));
+        (0..s.actions.len())
+            .map(|i| {
+                let obs = untag(&s.images[i * size..(i + 1) * size], stack);
+                let next = untag(&s.next_images[i * size..(i + 1) * size], stack);
+                let (stream, episode, t) = obs[stack - 1];
+                assert_eq!(obs, expected_stack(stream, episode, t, stack), "the observation stack of {:?}", obs[stack - 1]);
+                let (s2, e2, t2) = next[stack - 1];
+                assert!((s2, e2) == (stream, episode) && t2 > t && t2 - t <= n_step, "{:?} leads to {:?}", obs[stack - 1], next[stack - 1]);
+                assert_eq!(next, expected_stack(stream, episode, t2, stack), "the next stack of {:?}", obs[stack - 1]);
+                assert_eq!((s.scalars[i][0], s.next_scalars[i][0]), (f32::from(t), f32::from(t2)), "scalars of the newest frames");
+                (stream, episode, t)
+            })
+            .collect()
+    }
+
+    /// Every live transition's observation and next stacks are whole in the ring: what the
+    /// retirement rule promises (retiring the observers of an overwritten frame's stack covers
+    /// the next stacks).
+    fn check_live_stacks(r: &Replay) {
+        let mut ids = Vec::new();
+        for (k, t) in r.transitions.iter().enumerate().filter(|(_, t)| !t.dead) {
+            assert_eq!(r.stack_of(t.obs, &mut ids), Ok(()), "transition {k}'s observation stack");
+            assert_eq!(r.stack_of(t.next, &mut ids), Ok(()), "transition {k}'s next stack");
+        }
+    }
+
+    #[test]
+    fn stacks_hold_the_last_frames_of_the_episode_oldest_first() {
+        let mut r = Replay::new(ReplayConfig { channels: 2, stack: 3, ..cfg(100) });
+        // Episode 0: steps 0..=5, terminal; episode 1: steps 0..=4, truncated.
+        let images: Vec<(u64, u32, [u8; 4])> =
+            (0..=5).map(|t| (0, t, tagged(0, 0, t as u16))).chain((0..=4).map(|t| (1, t, tagged(0, 1, t as u16)))).collect();
+        let recs: Vec<StepRecord<'_>> = images
+            .iter()
+            .map(|(e, t, img)| {
+                let end = match (e, t) {
+                    (0, 5) => Some(true),
+                    (1, 4) => Some(false),
+                    _ => None,
+                };
+                tagged_step(0, *e, *t, img, end)
+            })
+            .collect();
+        assert_eq!(r.add_steps("a", &recs), 9);
+        assert_eq!(r.frames_held(), 11, "one frame per step, stacks or not");
+        let s = r.sample(500).unwrap();
+        let seen = check_stacks(&s, 3, 1);
+        for (i, &(_, episode, t)) in seen.iter().enumerate() {
+            // The image is exactly the interleave of the three frames, the first repeated.
+            let stack = |t: u16| -> Vec<u8> {
+                let frames: Vec<[u8; 4]> = expected_stack(0, episode, t, 3).into_iter().map(|(s, e, t)| tagged(s, e, t)).collect();
+                let refs: Vec<&[u8]> = frames.iter().map(|f| f.as_slice()).collect();
+                let mut out = Vec::new();
+                interleave_frames(&refs, 2, &mut out);
+                out
+            };
+            assert_eq!(s.images[i * 12..(i + 1) * 12], stack(t));
+            assert_eq!(s.next_images[i * 12..(i + 1) * 12], stack(t + 1));
+        }
+        let mut all: Vec<(u8, u16)> = seen.iter().map(|&(_, e, t)| (e, t)).collect();
+        all.sort_unstable();
+        all.dedup();
+        let expected: Vec<(u8, u16)> = (0..5).map(|t| (0, t)).chain((0..4).map(|t| (1, t))).collect();
+        assert_eq!(all, expected, "every transition sampled, episode 1's from its own first frame");
+    }
+
+    #[test]
+    fn interleaved_streams_do_not_mix_their_frames() {
+        let mut r = Replay::new(ReplayConfig { channels: 2, stack: 4, ..cfg(1000) });
+        // Two environments of one actor and one of another, in chunks of different sizes.
+        let streams = [("a", 0u32, 0u8), ("a", 1, 1), ("b", 0, 2)];
+        let mut t = [0u32; 3];
+        for round in 0..30 {
+            let i = round % 3;
+            let (actor, env, tag) = streams[i];
+            let imgs: Vec<[u8; 4]> = (0..=i as u32).map(|k| tagged(tag, 0, (t[i] + k) as u16)).collect();
+            let recs: Vec<StepRecord<'_>> =
+                imgs.iter().enumerate().map(|(k, img)| tagged_step(env, 0, t[i] + k as u32, img, None)).collect();
+            r.add_steps(actor, &recs);
+            t[i] += imgs.len() as u32;
+        }
+        check_live_stacks(&r);
+        let s = r.sample(1000).unwrap();
+        let seen = check_stacks(&s, 4, 1);
+        for tag in 0..3 {
+            assert!(seen.iter().any(|&(s, _, _)| s == tag), "stream {tag} sampled");
+        }
+    }
+
+    #[test]
+    fn no_stack_reaches_across_a_break_in_the_stream() {
+        let mut r = Replay::new(ReplayConfig { channels: 2, stack: 3, ..cfg(100) });
+        // Steps 0–2, then 4–8 (3 lost): 0→1 and 1→2 are formed; 4→5 and 5→6 would need the lost
+        // frame 3 in their stacks, so only 6→7 and 7→8 follow.
+        let imgs: Vec<(u32, [u8; 4])> = (0..=8).filter(|&t| t != 3).map(|t| (t, tagged(0, 0, t as u16))).collect();
+        let recs: Vec<StepRecord<'_>> = imgs.iter().map(|(t, img)| tagged_step(0, 0, *t, img, None)).collect();
+        assert_eq!(r.add_steps("a", &recs), 4);
+        let s = r.sample(200).unwrap();
+        let mut seen: Vec<u16> = check_stacks(&s, 3, 1).into_iter().map(|(_, _, t)| t).collect();
+        seen.sort_unstable();
+        seen.dedup();
+        assert_eq!(seen, [0, 1, 6, 7]);
+        assert_eq!(r.evicted(), 0, "never stored is not evicted");
+    }
+
+    /// Several streams interleaved at the byte cap, one of them slow, episodes of random lengths,
+    /// stacks of 3, with 1- and 3-step returns: the ring overwrites frames that the stacks of live
+    /// transitions reach back to. No sample may hold a frame other than the stack's own, and no
+    /// live transition may keep a stack (observation or next) with a frame gone from the ring.
+    #[test]
+    fn stacks_at_the_byte_cap_never_hold_an_overwritten_frame() {
+        for (n_step, prioritized) in [(1, false), (3, false), (3, true)] {
+            let base = ReplayConfig { channels: 2, stack: 3, n_step, prioritized, ..cfg(1000) };
+            let per_frame = stored_frame_cost(&base);
+            let max_bytes = 24 * per_frame + 1000 * TRANSITION_BYTES;
+            let mut r = Replay::new(ReplayConfig { max_bytes, ..base });
+            assert_eq!(r.frame_slots, 24);
+            let mut rng = ChaCha8Rng::seed_from_u64(5);
+            let (mut t, mut episode) = ([0u32; 4], [0u8; 4]);
+            let mut length: [u32; 4] = std::array::from_fn(|_| rng.random_range(2..12));
+            let mut sampled = 0;
+            for round in 0..600 {
+                // Stream 0 is slow (one step in 10 rounds); the others send 1–5 steps at a time.
+                let stream = if round % 10 == 0 { 0 } else { 1 + rng.random_range(0..3usize) };
+                let n = (if stream == 0 { 1 } else { rng.random_range(1..=5u32) }).min(length[stream] + 1 - t[stream]);
+                let imgs: Vec<[u8; 4]> = (0..n).map(|k| tagged(stream as u8, episode[stream], (t[stream] + k) as u16)).collect();
+                let recs: Vec<StepRecord<'_>> = imgs
+                    .iter()
+                    .enumerate()
+                    .map(|(k, img)| {
+                        let step = t[stream] + k as u32;
+                        let end = (step == length[stream]).then(|| rng.random_bool(0.5));
+                        tagged_step(0, u64::from(episode[stream]), step, img, end)
+                    })
+                    .collect();
+                r.add_steps(&format!("actor-{stream}"), &recs);
+                t[stream] += n;
+                if t[stream] > length[stream] {
+                    (t[stream], episode[stream], length[stream]) = (0, episode[stream].wrapping_add(1), rng.random_range(2..12));
+                }
+                assert!(r.bytes() <= max_bytes);
+                check_live_stacks(&r);
+                if let Some(s) = r.sample(64) {
+                    sampled += check_stacks(&s, 3, n_step as u16).len();
+                    if prioritized {
+                        r.update_priorities(&s.slots, &vec![0.5; 64]);
+                    }
+                }
+            }
+            assert!(sampled > 0 && r.evicted() > 0, "n_step {n_step}: {sampled} sampled, {} evicted", r.evicted());
+        }
+    }
+
+    /// FNV-1a over everything a sample hands out, for comparing whole sampling runs.
+    fn fingerprint(h: &mut u64, s: &Sample) {
+        let mut eat = |bytes: &[u8]| {
+            for &b in bytes {
+                *h = (*h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3);
+            }
+        };
+        eat(&s.images);
+        eat(&s.next_images);
+        for sc in s.scalars.iter().chain(&s.next_scalars) {
+            sc.iter().for_each(|x| eat(&x.to_bits().to_le_bytes()));
+        }
+        s.actions.iter().for_each(|x| eat(&x.to_le_bytes()));
+        for x in s.rewards.iter().chain(&s.discounts).chain(&s.weights) {
+            eat(&x.to_bits().to_le_bytes());
+        }
+        s.slots.iter().for_each(|&x| eat(&(x as u64).to_le_bytes()));
+    }
+
+    /// Stack 1 is the replay as it was before frame stacks: interleaved streams, episode ends,
+    /// n-step returns and prioritized sampling under a byte cap that overwrites frames hand out
+    /// exactly the samples, retirements and sizes that the replay without stacks handed out
+    /// (the fingerprints were taken from it).
+    #[test]
+    fn stack_1_samples_exactly_what_the_replay_without_stacks_sampled() {
+        let mut got = Vec::new();
+        for (n_step, prioritized) in [(1, false), (3, true)] {
+            let cfg = ReplayConfig { max_bytes: 40 * frame_cost(4) + 200 * TRANSITION_BYTES, n_step, prioritized, ..cfg(200) };
+            let mut r = Replay::new(cfg);
+            let mut rng = ChaCha8Rng::seed_from_u64(11);
+            let mut t = [0u32; 3];
+            let mut ep = [0u64; 3];
+            let mut h = 0xcbf2_9ce4_8422_2325u64;
+            for _ in 0..300 {
+                let stream = rng.random_range(0..3usize);
+                let n = rng.random_range(1..=4u32).min(10 - t[stream]);
+                let imgs: Vec<[u8; 4]> = (0..n).map(|k| [stream as u8, ep[stream] as u8, (t[stream] + k) as u8, rng.random()]).collect();
+                let recs: Vec<StepRecord<'_>> = imgs
+                    .iter()
+                    .enumerate()
+                    .map(|(k, img)| {
+                        let tt = t[stream] + k as u32;
+                        StepRecord {
+                            env: stream as u32,
+                            episode: ep[stream],
+                            t: tt,
+                            image: img,
+                            speed: tt as f32,
+                            d: stream as f32,
+                            path: [0.0; PATH_FEATURES],
+                            action: tt % 3,
+                            reward: tt as f32 * 0.25,
+                            terminated: tt == 9,
+                            truncated: false,
+                        }
+                    })
+                    .collect();
+                r.add_steps("a", &recs);
+                t[stream] += n;
+                if t[stream] == 10 {
+                    t[stream] = 0;
+                    ep[stream] += 1;
+                }
+                if let Some(s) = r.sample(16) {
+                    fingerprint(&mut h, &s);
+                    if prioritized {
+                        let td: Vec<f32> = (0..16).map(|_| rng.random_range(0.0..2.0)).collect();
+                        r.update_priorities(&s.slots, &td);
+                    }
+                }
+                h ^= r.len() as u64 ^ (r.evicted() << 20) ^ (r.frames_held() << 40);
+            }
+            assert!(r.evicted() > 0, "the ring overwrote frames");
+            got.push(h);
+        }
+        assert_eq!(got, [4002351331951892827, 17818935059842010881]);
     }
 }

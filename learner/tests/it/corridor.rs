@@ -157,6 +157,8 @@ fn train(o: Options, env_steps: u32) -> (Dqn, Report) {
         capacity: 4096,
         max_bytes: 1 << 22,
         frame_bytes: FRAME_BYTES,
+        channels: 1,
+        stack: 1,
         gamma: cfg.gamma,
         n_step: cfg.n_step,
         prioritized: cfg.prioritized_replay,
