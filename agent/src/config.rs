@@ -27,7 +27,7 @@ use crate::shape::NetShape;
 #[serde(default, deny_unknown_fields)]
 pub struct RunConfig {
     /// A named preset the file starts from (`paper`, `end-to-end`, `hybrid-tuned`,
-    /// `end-to-end-tuned`); the file's other values override it, table by table; without one, the
+    /// `end-to-end-tuned`, `hybrid-hazards`); the file's other values override it, table by table; without one, the
     /// built-in defaults.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub preset: Option<String>,
@@ -43,7 +43,9 @@ pub struct RunConfig {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct AgentConfig {
-    /// Discrete actions. The default is the paper code's six.
+    /// Discrete actions: `paper6` (the paper code's six, braking at 0.1), `paper12` (the seed
+    /// code's earlier twelve) or `full15` (five steering values × full throttle, coast, full
+    /// brake). The default is the paper code's six.
     pub action_set: ActionSet,
     /// Filters of each of the three convolution layers. The default is the paper's.
     pub conv_filters: usize,
@@ -427,6 +429,46 @@ impl RunConfig {
         cam.width as usize * cam.height as usize * usize::from(cam.channels())
     }
 
+    /// Refuses to load the weights of a checkpoint trained with `saved` into this run when the
+    /// two disagree on what the network's outputs mean or what its input holds: the action set
+    /// and the camera's frame stack. The error names both values and the field.
+    pub fn check_checkpoint_body(&self, saved: &RunConfig) -> Result<(), String> {
+        let (ours, theirs) = (self.agent.action_set, saved.agent.action_set);
+        if ours != theirs {
+            return Err(format!(
+                "agent.action_set: the checkpoint was trained with `{}` ({} actions), this run is configured with `{}` ({} actions); \
+                 its Q-values mean other actions: set action_set = \"{}\" or start a new run",
+                theirs.name(),
+                theirs.actions().len(),
+                ours.name(),
+                ours.actions().len(),
+                theirs.name()
+            ));
+        }
+        let stack = |c: &RunConfig| c.env.camera.as_ref().map_or(1, |cam| cam.stack);
+        if stack(self) != stack(saved) {
+            return Err(format!(
+                "env.camera.stack: the checkpoint sees {} frame(s), this run is configured with {}: set stack = {} or start a new run",
+                stack(saved),
+                stack(self),
+                stack(saved)
+            ));
+        }
+        Ok(())
+    }
+
+    /// Bytes per pixel of one camera frame (1 gray, 3 RGB). Validation guarantees a camera.
+    #[must_use]
+    pub fn frame_channels(&self) -> usize {
+        usize::from(self.env.camera.as_ref().expect("validated: a camera is configured").channels())
+    }
+
+    /// Frames the network sees at once (`[env.camera] stack`). Validation guarantees a camera.
+    #[must_use]
+    pub fn frame_stack(&self) -> usize {
+        self.env.camera.as_ref().expect("validated: a camera is configured").stack as usize
+    }
+
     /// A run small enough to train in seconds, for tests and smoke runs: a 16×16 gray camera,
     /// 2 filters and 8 hidden units, training after 32 transitions in batches of 8, weights
     /// published every 2 updates, a free loopback port and hourly checkpoints.
@@ -485,6 +527,25 @@ mod tests {
         assert_eq!(cfg.agent.gamma, 0.9);
         assert_eq!(cfg.agent.batch_size, 32);
         assert_eq!(cfg.scalar_inputs(), 1);
+    }
+
+    #[test]
+    fn a_checkpoint_with_another_action_set_or_stack_is_refused_naming_both() {
+        let run = RunConfig::preset("hybrid-tuned").unwrap();
+        run.check_checkpoint_body(&run.clone()).unwrap();
+        let mut other = run.clone();
+        other.agent.action_set = ActionSet::Full15;
+        let e = run.check_checkpoint_body(&other).unwrap_err();
+        assert!(
+            e.starts_with(
+                "agent.action_set: the checkpoint was trained with `full15` (15 actions), this run is configured with `paper6` (6 actions)"
+            ),
+            "{e}"
+        );
+        let mut other = run.clone();
+        other.env.camera.as_mut().unwrap().stack = 4;
+        let e = run.check_checkpoint_body(&other).unwrap_err();
+        assert!(e.starts_with("env.camera.stack: the checkpoint sees 4 frame(s), this run is configured with 1"), "{e}");
     }
 
     #[test]

@@ -2,7 +2,6 @@
 //! files of a run directory.
 
 pub mod checkpoint;
-pub mod frame_stack;
 pub mod replay;
 pub mod replay_log;
 pub mod run_lock;

@@ -28,8 +28,8 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use sim_core::env::PATH_FEATURES;
 
-use crate::storage::frame_stack::interleave_frames;
 use crate::storage::sum_tree::SumTree;
+use sim_core::camera::interleave_frames;
 
 /// Sizes and options of a replay buffer.
 #[derive(Debug, Clone, PartialEq)]
