@@ -5,7 +5,7 @@
 /// Every field and table of the configuration file by dotted path, and what it means.
 #[rustfmt::skip]
 pub const FIELD_DOCS: &[(&str, &str)] = &[
-    ("preset", "A named preset the file starts from (`paper`, `end-to-end`, `hybrid-tuned`, `end-to-end-tuned`); the file's other values override it, table by table; without one, the built-in defaults (default: none)."),
+    ("preset", "A named preset the file starts from (`paper`, `end-to-end`, `hybrid-tuned`, `end-to-end-tuned`, `hybrid-hazards`); the file's other values override it, table by table; without one, the built-in defaults (default: none)."),
     ("env", "The simulated world: the environment every actor runs."),
     ("env.variant", "`hybrid` (the paper's agent: the network sees d, the reward has r_w) or `end_to_end` (camera and speed only, no r_w) (default `hybrid`)."),
     ("env.map", "The town to train on: `default_town` when unset, `held_out_town` or a map file (text format or OpenDRIVE `.xodr`, relative to the learner's directory); the learner sends it to every actor (default: none)."),
@@ -62,6 +62,7 @@ pub const FIELD_DOCS: &[(&str, &str)] = &[
     ("env.camera.mount_forward", "Distance of the lens ahead of the vehicle's centre, metres (default 1)."),
     ("env.camera.pitch_deg", "Downward tilt, degrees, realised as a lens shift (default 8)."),
     ("env.camera.max_distance", "Nothing farther than this is drawn, metres (default 150)."),
+    ("env.camera.stack", "Frames the observation holds: the last `stack` images, oldest first, interleaved per pixel (`FrameStack`), so that motion is observable (default 1). 1 is a single frame, the paper's."),
     ("env.hazards", "Hazards the planner does not know: stalled car, pedestrian crossing, cut-in, hard brake, construction, opposite overtaker, junction runner."),
     ("env.hazards.rate", "Probability that an episode gets a hazard, 0 (none) to 1 (default 0)."),
     ("env.hazards.kinds", "The kinds drawn from, uniformly (default `stalled_car`, `pedestrian_crossing`, `cut_in`, `hard_brake`, `construction`, `opposite_overtaker`, `junction_runner`)."),
@@ -88,7 +89,7 @@ pub const FIELD_DOCS: &[(&str, &str)] = &[
     ("env.hazards.runner_speed.max", "Upper end of the range (default 11)."),
     ("env.planner", "The planner giving the waypoints (d, path features, the model-based driver): `astar` (the global route) or `astar+avoid` (bent around perceived hazards and obstacles) (default `astar`)."),
     ("agent", "The DQN agent: network sizes, learning, replay, exploration."),
-    ("agent.action_set", "Discrete actions (default `paper6`). The default is the paper code's six."),
+    ("agent.action_set", "Discrete actions: `paper6` (the paper code's six, braking at 0.1), `paper12` (the seed code's earlier twelve) or `full15` (five steering values × full throttle, coast, full brake) (default `paper6`). The default is the paper code's six."),
     ("agent.conv_filters", "Filters of each of the three convolution layers (default 64). The default is the paper's."),
     ("agent.hidden", "Units of each of the two hidden fully connected layers (default 256). The default is the paper's."),
     ("agent.precision", "Arithmetic of the wide convolutions and, in training, fc1: `auto` (bf16 on AMX where the CPU has it, else f32), `f32`, or `bf16` (on AMX, else on AVX512-BF16, which loses to f32 on Intel's cores and wins on AMD Zen 4, docs/PERFORMANCE.md#bf16; refused without either) (default `auto`). Results differ between f32 and bf16 (bf16 keeps 8 significant bits) and between the two bf16 kernels (their sums run in other orders); each is bit-identical run to run."),
