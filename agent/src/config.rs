@@ -44,8 +44,8 @@ pub struct RunConfig {
 #[serde(default, deny_unknown_fields)]
 pub struct AgentConfig {
     /// Discrete actions: `paper6` (the paper code's six, braking at 0.1), `paper12` (the seed
-    /// code's earlier twelve) or `full15` (five steering values × full throttle, coast, full
-    /// brake). The default is the paper code's six.
+    /// code's earlier twelve), or a full-authority set of 5, 7 or 9 steering values × full
+    /// throttle, coast, full brake: `full15`, `full21`, `full27`. The default is the paper code's six.
     pub action_set: ActionSet,
     /// Filters of each of the three convolution layers. The default is the paper's.
     pub conv_filters: usize,

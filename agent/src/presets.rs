@@ -22,7 +22,7 @@ pub const PRESETS: [(&str, &str); 5] = [
     ("end-to-end-tuned", "`end-to-end` with the same tuning (no planner input, so no path features)"),
     (
         "hybrid-hazards",
-        "`hybrid-tuned` for hazards: full-authority actions (full15), the progress reward, training episodes like the \
+        "`hybrid-tuned` for hazards: full-authority actions (full27), the progress reward, training episodes like the \
          hazard suite's (half of them with a hazard), a 64x64 60-degree camera stacking 4 frames",
     ),
 ];
@@ -90,7 +90,7 @@ impl RunConfig {
         if name == "hybrid-hazards" {
             // docs/EVALUATION.md: the ceiling of each action set, the reward's ordering of
             // outcomes, and the pixels a hazard covers per camera.
-            a.action_set = ActionSet::Full15;
+            a.action_set = ActionSet::Full27;
             let env = &mut cfg.env;
             env.reward = RewardConfig::progress();
             env.hazards.rate = 0.5;
@@ -155,7 +155,7 @@ mod tests {
         let hz = RunConfig::preset("hybrid-hazards").unwrap();
         hz.validate().unwrap();
         let tuned = RunConfig::preset("hybrid-tuned").unwrap();
-        assert_eq!(hz.agent.action_set, ActionSet::Full15);
+        assert_eq!(hz.agent.action_set, ActionSet::Full27);
         assert_eq!(hz.env.reward, RewardConfig::progress());
         assert_eq!((hz.env.hazards.rate, hz.env.time_limit, hz.env.route_length_min), (0.5, 600, 120.0));
         let cam = hz.env.camera.as_ref().unwrap();

@@ -1,9 +1,10 @@
 //! Discrete action sets: the DQN picks an index, the environment receives (throttle, brake, steer).
 //!
 //! `paper6` is the paper code's six, whose brake (0.1) decelerates at about 1.1 m/s² with the
-//! default vehicle; `paper12` the seed code's earlier twelve; `full15` a full-authority set:
-//! five steering values × {full throttle, coast, full brake}, so that the agent can brake at the
-//! vehicle's limit, roll, and brake while steering. [`ActionSet::nearest`] maps a continuous
+//! default vehicle; `paper12` the seed code's earlier twelve; `full15`, `full21` and `full27`
+//! full-authority sets: five, seven or nine steering values × {full throttle, coast, full brake},
+//! so that the agent can brake at the vehicle's limit, roll, and brake while steering. How much
+//! of the baselines' driving each set keeps is measured in docs/EVALUATION.md. [`ActionSet::nearest`] maps a continuous
 //! control to a set's action (`actor eval --quantise`, docs/EVALUATION.md).
 
 use serde::{Deserialize, Serialize};
@@ -22,6 +23,12 @@ pub enum ActionSet {
     Paper12,
     /// Full authority: steer −1, −0.35, 0, 0.35, 1, each with full throttle, coast or full brake.
     Full15,
+    /// Full authority with finer steering: −1, −0.5, −0.2, 0, 0.2, 0.5, 1, each with full throttle,
+    /// coast or full brake.
+    Full21,
+    /// Full authority with finer steering still: −1, −0.6, −0.3, −0.1, 0, 0.1, 0.3, 0.6, 1, each
+    /// with full throttle, coast or full brake.
+    Full27,
 }
 
 const PAPER6: [Action; 6] = [
@@ -52,21 +59,27 @@ const PAPER12: [Action; 12] = [
 /// junctions (the usable lock shrinks with speed, `VehicleParams::steer_limit`).
 const FULL_STEER: [f32; 5] = [-1.0, -0.35, 0.0, 0.35, 1.0];
 
-const FULL15: [Action; 15] = {
-    let mut out = [Action::new(0.0, 0.0, 0.0); 15];
+const FULL15: [Action; 15] = full_authority(FULL_STEER);
+const FULL21: [Action; 21] = full_authority([-1.0, -0.5, -0.2, 0.0, 0.2, 0.5, 1.0]);
+const FULL27: [Action; 27] = full_authority([-1.0, -0.6, -0.3, -0.1, 0.0, 0.1, 0.3, 0.6, 1.0]);
+
+/// Every steering value with full throttle, then coasting, then full brake.
+const fn full_authority<const S: usize, const N: usize>(steer: [f32; S]) -> [Action; N] {
+    assert!(N == 3 * S, "three longitudinal choices per steering value");
+    let mut out = [Action::new(0.0, 0.0, 0.0); N];
     let mut i = 0;
-    while i < 5 {
-        out[i] = Action::new(1.0, 0.0, FULL_STEER[i]);
-        out[5 + i] = Action::new(0.0, 0.0, FULL_STEER[i]);
-        out[10 + i] = Action::new(0.0, 1.0, FULL_STEER[i]);
+    while i < S {
+        out[i] = Action::new(1.0, 0.0, steer[i]);
+        out[S + i] = Action::new(0.0, 0.0, steer[i]);
+        out[2 * S + i] = Action::new(0.0, 1.0, steer[i]);
         i += 1;
     }
     out
-};
+}
 
 impl ActionSet {
     /// Every set, in the order `--help` lists them.
-    pub const ALL: [ActionSet; 3] = [ActionSet::Paper6, ActionSet::Paper12, ActionSet::Full15];
+    pub const ALL: [ActionSet; 5] = [ActionSet::Paper6, ActionSet::Paper12, ActionSet::Full15, ActionSet::Full21, ActionSet::Full27];
 
     /// The actions, in index order.
     #[must_use]
@@ -75,6 +88,8 @@ impl ActionSet {
             ActionSet::Paper6 => &PAPER6,
             ActionSet::Paper12 => &PAPER12,
             ActionSet::Full15 => &FULL15,
+            ActionSet::Full21 => &FULL21,
+            ActionSet::Full27 => &FULL27,
         }
     }
 
@@ -85,6 +100,8 @@ impl ActionSet {
             ActionSet::Paper6 => "paper6",
             ActionSet::Paper12 => "paper12",
             ActionSet::Full15 => "full15",
+            ActionSet::Full21 => "full21",
+            ActionSet::Full27 => "full27",
         }
     }
 
@@ -134,11 +151,14 @@ mod tests {
     #[test]
     fn sets_have_their_documented_sizes_and_names_round_trip() {
         let sizes: Vec<usize> = ActionSet::ALL.iter().map(|s| s.actions().len()).collect();
-        assert_eq!(sizes, [6, 12, 15]);
+        assert_eq!(sizes, [6, 12, 15, 21, 27]);
         for s in ActionSet::ALL {
             assert_eq!(ActionSet::from_name(s.name()), Ok(s));
         }
-        assert_eq!(ActionSet::from_name("full").unwrap_err(), "unknown action set `full`: expected one of paper6, paper12, full15");
+        assert_eq!(
+            ActionSet::from_name("full").unwrap_err(),
+            "unknown action set `full`: expected one of paper6, paper12, full15, full21, full27"
+        );
     }
 
     #[test]

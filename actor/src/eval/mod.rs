@@ -85,7 +85,7 @@ pub struct EvalArgs {
     #[arg(long, value_name = "FILE", requires = "suite")]
     pub trajectories_out: Option<PathBuf>,
     /// With --suite: the baselines drive with this action set only, every control replaced by
-    /// its nearest action (`paper6`, `paper12`, `full15`; docs/EVALUATION.md): the ceiling of a
+    /// its nearest action (`paper6`, `paper12`, `full15`, `full21`, `full27`; docs/EVALUATION.md): the ceiling of a
     /// set, what its actions let a driver that knows how to drive keep.
     #[arg(long, value_name = "SET", requires = "suite", value_parser = parse_action_set)]
     pub quantise: Option<sim_core::actions::ActionSet>,

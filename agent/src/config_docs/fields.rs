@@ -89,7 +89,7 @@ pub const FIELD_DOCS: &[(&str, &str)] = &[
     ("env.hazards.runner_speed.max", "Upper end of the range (default 11)."),
     ("env.planner", "The planner giving the waypoints (d, path features, the model-based driver): `astar` (the global route) or `astar+avoid` (bent around perceived hazards and obstacles) (default `astar`)."),
     ("agent", "The DQN agent: network sizes, learning, replay, exploration."),
-    ("agent.action_set", "Discrete actions: `paper6` (the paper code's six, braking at 0.1), `paper12` (the seed code's earlier twelve) or `full15` (five steering values × full throttle, coast, full brake) (default `paper6`). The default is the paper code's six."),
+    ("agent.action_set", "Discrete actions: `paper6` (the paper code's six, braking at 0.1), `paper12` (the seed code's earlier twelve), or a full-authority set of 5, 7 or 9 steering values × full throttle, coast, full brake: `full15`, `full21`, `full27` (default `paper6`). The default is the paper code's six."),
     ("agent.conv_filters", "Filters of each of the three convolution layers (default 64). The default is the paper's."),
     ("agent.hidden", "Units of each of the two hidden fully connected layers (default 256). The default is the paper's."),
     ("agent.precision", "Arithmetic of the wide convolutions and, in training, fc1: `auto` (bf16 on AMX where the CPU has it, else f32), `f32`, or `bf16` (on AMX, else on AVX512-BF16, which loses to f32 on Intel's cores and wins on AMD Zen 4, docs/PERFORMANCE.md#bf16; refused without either) (default `auto`). Results differ between f32 and bf16 (bf16 keeps 8 significant bits) and between the two bf16 kernels (their sums run in other orders); each is bit-identical run to run."),
