@@ -9,7 +9,6 @@ use std::sync::atomic::Ordering;
 use agent::config::RunConfig;
 use agent::fastnet::Inference;
 use anyhow::Result;
-use learner::telemetry::records::{OUTCOME_ARRIVED, OUTCOME_COLLISION, OUTCOME_TIMEOUT};
 use proto::v1 as pb;
 use rand::{Rng, RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -140,11 +139,11 @@ pub fn step_loop(
 /// terminated, timeout when truncated.
 pub fn summary(env: u32, episode: u64, episode_return: f64, steps: u32, truncated: bool, info: &StepInfo) -> pb::EpisodeSummary {
     let outcome = if truncated {
-        OUTCOME_TIMEOUT
+        pb::outcome::TIMEOUT
     } else if info.arrived {
-        OUTCOME_ARRIVED
+        pb::outcome::ARRIVED
     } else {
-        OUTCOME_COLLISION
+        pb::outcome::COLLISION
     };
     pb::EpisodeSummary {
         env,

@@ -63,11 +63,11 @@ pub struct EvalRouteRecord {
 /// `EpisodeSummary.outcome`): it reached its destination, it collided, or it hit its time limit.
 pub const OUTCOMES: [&str; 3] = [OUTCOME_ARRIVED, OUTCOME_COLLISION, OUTCOME_TIMEOUT];
 /// The episode reached its destination.
-pub const OUTCOME_ARRIVED: &str = "arrived";
+pub const OUTCOME_ARRIVED: &str = proto::v1::outcome::ARRIVED;
 /// The episode ended in a collision.
-pub const OUTCOME_COLLISION: &str = "collision";
+pub const OUTCOME_COLLISION: &str = proto::v1::outcome::COLLISION;
 /// The episode hit its time limit (truncated).
-pub const OUTCOME_TIMEOUT: &str = "timeout";
+pub const OUTCOME_TIMEOUT: &str = proto::v1::outcome::TIMEOUT;
 
 /// The outcome of a finished episode from its `arrived` flag and whether it collided: for
 /// summaries of actors that predate the outcome field. An episode that neither arrived nor
