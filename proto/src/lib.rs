@@ -22,6 +22,17 @@ pub mod v1 {
     /// The protocol revision an actor states in `Register`; the learner refuses any other.
     pub const PROTOCOL: u32 = 1;
 
+    /// The values of `EpisodeSummary.outcome`: one definition for the actor that sends them and
+    /// the learner that checks them.
+    pub mod outcome {
+        /// The episode reached its destination.
+        pub const ARRIVED: &str = "arrived";
+        /// The episode ended in a collision.
+        pub const COLLISION: &str = "collision";
+        /// The episode hit its time limit (truncated).
+        pub const TIMEOUT: &str = "timeout";
+    }
+
     /// The encoded file descriptor set, for gRPC server reflection.
     pub const FILE_DESCRIPTOR_SET: &[u8] = tonic::include_file_descriptor_set!("hybriddrive_v1_descriptor");
 }

@@ -1,6 +1,7 @@
 //! Cross-process tests of distributed training: a learner (in this process, so that it can be
-//! stopped and resumed) and actor processes over loopback gRPC. Bounded in time: every wait has a
-//! deadline and fails with the status it last saw.
+//! stopped and resumed) and actor processes over loopback gRPC; the episode summaries they send
+//! reach `episodes.jsonl`. Bounded in time: every wait has a deadline and fails with the status it
+//! last saw.
 
 use crate::support;
 
@@ -93,4 +94,39 @@ async fn actors_train_survive_each_other_and_a_learner_restart() {
     };
     assert!(code.success(), "actor exit status {code:?}; log:\n{}", std::fs::read_to_string(dir.path().join("a.log")).unwrap());
     learner.stop().await.unwrap();
+}
+
+/// An actor's episode summaries reach `episodes.jsonl` with their hazard kind and outcome.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn episodes_jsonl_names_each_episodes_hazard_and_outcome() {
+    use learner::telemetry::records::{OUTCOMES, read_episodes};
+    use sim_core::hazards::{HazardKind, HazardsConfig};
+
+    let dir = tempfile::tempdir().unwrap();
+    let addr = free_port();
+    // Every episode has a hazard, and a short time limit ends the episodes quickly.
+    let mut cfg = config(&dir.path().join("run"), &addr);
+    cfg.env.hazards = HazardsConfig { rate: 1.0, kinds: vec![HazardKind::StalledCar, HazardKind::CutIn], ..HazardsConfig::default() };
+    cfg.env.time_limit = 30;
+    let cfg_path = dir.path().join("run.toml");
+    std::fs::write(&cfg_path, cfg.to_toml()).unwrap();
+    let learner = start(ServeOptions { config: Some(cfg_path), ..ServeOptions::default() }).await.unwrap();
+    let mut a = spawn_actor(&addr, "a", &dir.path().join("a.log"));
+    wait_for(&addr, 120, "four finished episodes", |s| s.episodes.as_ref().is_some_and(|e| e.episodes_total >= 4)).await;
+    a.kill9();
+    // Stopping flushes episodes.jsonl.
+    learner.stop().await.unwrap();
+
+    let eps = read_episodes(&dir.path().join("run/episodes.jsonl")).unwrap();
+    assert!(eps.len() >= 4, "{eps:?}");
+    for e in &eps {
+        assert!(matches!(e.hazard.as_deref(), Some("stalled_car" | "cut_in")), "{e:?}");
+        assert!(OUTCOMES.contains(&e.outcome.as_str()), "{e:?}");
+        let expected = match e.outcome.as_str() {
+            "arrived" => e.arrived && e.collision.is_none(),
+            "collision" => !e.arrived && e.collision.is_some(),
+            _ => !e.arrived && e.collision.is_none() && e.steps == 30,
+        };
+        assert!(expected, "the outcome contradicts the flags or the time limit: {e:?}");
+    }
 }

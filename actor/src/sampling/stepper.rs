@@ -12,7 +12,7 @@ use anyhow::Result;
 use proto::v1 as pb;
 use rand::{Rng, RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use sim_core::env::Env;
+use sim_core::env::{Env, StepInfo};
 use sim_core::scenario::Scenario;
 use sim_core::town::Town;
 
@@ -95,15 +95,7 @@ pub fn step_loop(
                 truncated: r.truncated,
             });
             if r.terminated || r.truncated {
-                summaries.push(pb::EpisodeSummary {
-                    env: k as u32,
-                    episode: episode[k],
-                    episode_return: returns[k] as f32,
-                    steps: t[k],
-                    arrived: r.info.arrived,
-                    collision: r.info.collision.map(|c| c.name().to_owned()).unwrap_or_default(),
-                    scenario: "random".into(),
-                });
+                summaries.push(summary(k as u32, episode[k], returns[k], t[k], r.truncated, &r.info));
                 episode[k] += 1;
                 t[k] = 0;
                 returns[k] = 0.0;
@@ -141,6 +133,31 @@ pub fn step_loop(
     Ok(())
 }
 
+/// The summary of a finished episode from its final step: whether that step was truncated (else
+/// it was terminated) and its info. The hazard is the final step's info's (an episode keeps its
+/// hazard from reset to its end); the outcome is the step's: arrived or collision when
+/// terminated, timeout when truncated.
+pub fn summary(env: u32, episode: u64, episode_return: f64, steps: u32, truncated: bool, info: &StepInfo) -> pb::EpisodeSummary {
+    let outcome = if truncated {
+        pb::outcome::TIMEOUT
+    } else if info.arrived {
+        pb::outcome::ARRIVED
+    } else {
+        pb::outcome::COLLISION
+    };
+    pb::EpisodeSummary {
+        env,
+        episode,
+        episode_return: episode_return as f32,
+        steps,
+        arrived: info.arrived,
+        collision: info.collision.map(|c| c.name().to_owned()).unwrap_or_default(),
+        scenario: "random".into(),
+        hazard: info.hazard.map(|h| h.kind.name().to_owned()).unwrap_or_default(),
+        outcome: outcome.to_owned(),
+    }
+}
+
 /// The random stream of an actor's episode seeds and exploration: from the run's seed, the
 /// actor's index and the learner's `episode_stream` for this registration. Stream 0 (a fresh run's
 /// first life of the actor) is the stream actors have always drawn from; a restarted actor gets
@@ -154,6 +171,43 @@ pub fn episode_rng(seed: u64, index: u32, episode_stream: u64) -> ChaCha8Rng {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn summaries_carry_the_episodes_hazard_and_how_it_ended() {
+        use sim_core::collision::CollisionKind;
+        use sim_core::config::EnvConfig;
+        use sim_core::hazards::{HazardKind, HazardsConfig};
+        use sim_core::vehicle::Action;
+
+        // Standing still behind a stalled car: the episode runs into its short time limit.
+        let cfg = EnvConfig { time_limit: 20, hazards: HazardsConfig::only(HazardKind::StalledCar), ..EnvConfig::default() };
+        let mut env = Env::new(Town::default_town(), cfg).unwrap();
+        env.reset(3, Scenario::Random).unwrap();
+        let last = loop {
+            let r = env.step(Action::new(0.0, 1.0, 0.0)).unwrap();
+            if r.terminated || r.truncated {
+                break r;
+            }
+        };
+        assert!(last.truncated, "{last:?}");
+        let s = summary(2, 7, -1.5, 20, last.truncated, &last.info);
+        assert_eq!((s.env, s.episode, s.episode_return, s.steps), (2, 7, -1.5, 20));
+        assert_eq!((s.hazard.as_str(), s.outcome.as_str(), s.arrived, s.collision.as_str()), ("stalled_car", "timeout", false, ""));
+
+        // The same step, ended otherwise.
+        let ended = |arrived: bool, collision: Option<CollisionKind>| {
+            let mut info = last.info.clone();
+            (info.arrived, info.collision) = (arrived, collision);
+            summary(0, 0, 0.0, 1, false, &info)
+        };
+        let s = ended(true, None);
+        assert_eq!((s.outcome.as_str(), s.arrived), ("arrived", true));
+        let s = ended(false, Some(CollisionKind::Vehicle));
+        assert_eq!((s.outcome.as_str(), s.collision.as_str()), ("collision", "vehicle"));
+        let mut plain = last.info.clone();
+        plain.hazard = None;
+        assert_eq!(summary(0, 0, 0.0, 1, true, &plain).hazard, "", "no hazard: empty");
+    }
 
     #[test]
     fn stream_zero_is_the_original_stream_and_others_differ() {

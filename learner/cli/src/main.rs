@@ -378,6 +378,9 @@ fn main() -> Result<()> {
                 for g in summary.groups.iter().filter(|g| g.runs > 1) {
                     println!("{}", group_line(g));
                 }
+                if !summary.hazard_kinds.is_empty() {
+                    println!("hazard panels: {}", summary.hazard_kinds.join(", "));
+                }
                 println!("wrote {}", out.display());
                 Ok(())
             }

@@ -26,7 +26,7 @@ use crate::service::validate::{self, Expect, Reject};
 use crate::shared_state::{ActorRecord, EpisodeOutcome, Shared};
 use crate::storage::replay::StepRecord;
 use crate::storage::replay_log;
-use crate::telemetry::records::EpisodeRecord;
+use crate::telemetry::records::{EpisodeRecord, derived_outcome};
 
 pub use crate::service::validate::MAX_STEPS_PER_BATCH;
 
@@ -470,6 +470,9 @@ async fn acknowledge(shared: &Shared, s: Stored) -> Result<pb::BatchAck, Status>
             arrived: e.arrived,
             collision: (!e.collision.is_empty()).then(|| e.collision.clone()),
             scenario: e.scenario.clone(),
+            hazard: (!e.hazard.is_empty()).then(|| e.hazard.clone()),
+            // An actor that predates the outcome field sends it empty: derived from its flags.
+            outcome: if e.outcome.is_empty() { derived_outcome(e.arrived, !e.collision.is_empty()).to_owned() } else { e.outcome.clone() },
             learner_step,
             env_steps: total_steps,
         };

@@ -4,9 +4,11 @@
 
 use proto::v1 as pb;
 use sim_core::env::PATH_FEATURES;
+use sim_core::hazards::HazardKind;
 
 use crate::service::bounds::Bounds;
 use crate::shared_state::ActorRecord;
+use crate::telemetry::records::{OUTCOME_ARRIVED, OUTCOME_COLLISION, OUTCOME_TIMEOUT, OUTCOMES};
 
 /// Most steps one batch may carry.
 pub const MAX_STEPS_PER_BATCH: usize = 4096;
@@ -114,11 +116,36 @@ pub fn check(x: &Expect, actor: &ActorRecord, b: &pb::ExperienceBatch) -> Result
                 e.episode_return, x.bounds.episode_return
             ));
         }
+        if let Some(m) = bad_summary_names(e) {
+            return invalid(format!("episode summary {i}: {m}"));
+        }
     }
     if !(b.epsilon.is_finite() && (0.0..=1.0).contains(&b.epsilon)) {
         return invalid(format!("epsilon {} is outside [0, 1]", b.epsilon));
     }
     Ok(positions)
+}
+
+/// What, if anything, is wrong with a summary's hazard and outcome: an unknown hazard kind or
+/// outcome, or an outcome its `arrived` and `collision` contradict. Refused like the other
+/// malformed fields of a batch (not sanitised): they name TensorBoard tags and plot panels, and an
+/// actor of the same build never sends them; empty is accepted from actors that predate them.
+fn bad_summary_names(e: &pb::EpisodeSummary) -> Option<String> {
+    if !e.hazard.is_empty() && HazardKind::from_name(&e.hazard).is_none() {
+        return Some(format!("unknown hazard `{}` (known: {}, or empty for none)", e.hazard.escape_debug(), HazardKind::names()));
+    }
+    let collided = !e.collision.is_empty();
+    let consistent = match e.outcome.as_str() {
+        "" => true,
+        OUTCOME_ARRIVED => e.arrived && !collided,
+        OUTCOME_COLLISION => !e.arrived && collided,
+        OUTCOME_TIMEOUT => !e.arrived && !collided,
+        other => {
+            return Some(format!("unknown outcome `{}` (known: {}, or empty)", other.escape_debug(), OUTCOMES.join(", ")));
+        }
+    };
+    (!consistent)
+        .then(|| format!("outcome `{}` contradicts arrived = {} and collision `{}`", e.outcome, e.arrived, e.collision.escape_debug()))
 }
 
 /// Which number of a step, if any, is beyond the run's physical bounds, and by what bound.
@@ -230,6 +257,38 @@ mod tests {
         // is accepted.
         assert_eq!(a.last_seq, Some(5));
         check(&expect(), &a, &batch(9, vec![step(0, 1, 0), step(1, 0, 7)])).unwrap();
+    }
+
+    #[test]
+    fn summaries_name_known_hazards_and_outcomes_that_fit_their_flags() {
+        let a = ActorRecord::new("x".into(), "n".into(), 0, 1);
+        let summary = |hazard: &str, outcome: &str, arrived: bool, collision: &str| pb::EpisodeSummary {
+            hazard: hazard.into(),
+            outcome: outcome.into(),
+            arrived,
+            collision: collision.into(),
+            steps: 5,
+            ..pb::EpisodeSummary::default()
+        };
+        let with =
+            |e: pb::EpisodeSummary| check(&expect(), &a, &pb::ExperienceBatch { episodes: vec![e], ..batch(1, vec![step(0, 0, 1)]) });
+        for e in [
+            summary("stalled_car", "arrived", true, ""),
+            summary("cut_in", "collision", false, "vehicle"),
+            summary("", "timeout", false, ""),
+            // From an actor that predates both fields.
+            summary("", "", true, ""),
+        ] {
+            with(e.clone()).unwrap_or_else(|r| panic!("{e:?} refused: {r:?}"));
+        }
+        let m = refused(with(summary("meteor", "arrived", true, "")));
+        assert!(m.starts_with("batch 1: episode summary 0: unknown hazard `meteor` (known: stalled_car, "), "{m}");
+        let m = refused(with(summary("", "crashed", false, "vehicle")));
+        assert_eq!(m, "batch 1: episode summary 0: unknown outcome `crashed` (known: arrived, collision, timeout, or empty)");
+        let m = refused(with(summary("", "timeout", false, "building")));
+        assert_eq!(m, "batch 1: episode summary 0: outcome `timeout` contradicts arrived = false and collision `building`");
+        let m = refused(with(summary("hard_brake", "arrived", false, "")));
+        assert!(m.contains("outcome `arrived` contradicts arrived = false"), "{m}");
     }
 
     #[test]

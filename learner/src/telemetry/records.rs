@@ -59,6 +59,31 @@ pub struct EvalRouteRecord {
     pub mean_return: f64,
 }
 
+/// How a training episode ends ([`EpisodeRecord::outcome`], and the wire's
+/// `EpisodeSummary.outcome`): it reached its destination, it collided, or it hit its time limit.
+pub const OUTCOMES: [&str; 3] = [OUTCOME_ARRIVED, OUTCOME_COLLISION, OUTCOME_TIMEOUT];
+/// The episode reached its destination.
+pub const OUTCOME_ARRIVED: &str = proto::v1::outcome::ARRIVED;
+/// The episode ended in a collision.
+pub const OUTCOME_COLLISION: &str = proto::v1::outcome::COLLISION;
+/// The episode hit its time limit (truncated).
+pub const OUTCOME_TIMEOUT: &str = proto::v1::outcome::TIMEOUT;
+
+/// The outcome of a finished episode from its `arrived` flag and whether it collided: for
+/// summaries of actors that predate the outcome field. An episode that neither arrived nor
+/// collided can only have ended at its time limit, as long as those are the simulator's only
+/// three endings; a future ending would be misread as a timeout here.
+#[must_use]
+pub fn derived_outcome(arrived: bool, collided: bool) -> &'static str {
+    if arrived {
+        OUTCOME_ARRIVED
+    } else if collided {
+        OUTCOME_COLLISION
+    } else {
+        OUTCOME_TIMEOUT
+    }
+}
+
 /// One finished training episode: a line of `episodes.jsonl`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct EpisodeRecord {
@@ -77,6 +102,14 @@ pub struct EpisodeRecord {
     /// What the ego vehicle hit, if the episode ended in a collision.
     pub collision: Option<String>,
     pub scenario: String,
+    /// The episode's hazard kind (`stalled_car`, `cut_in`, …: sim-core's `HazardKind::name`), if
+    /// it had one. Absent from lines written before hazards were recorded: read as none.
+    #[serde(default)]
+    pub hazard: Option<String>,
+    /// How the episode ended: one of [`OUTCOMES`] (`arrived`, `collision`, `timeout`). Absent from
+    /// lines written before outcomes were recorded: read as empty.
+    #[serde(default)]
+    pub outcome: String,
     /// The learner's update count when the episode was received.
     pub learner_step: u64,
     /// Environment steps received by the learner so far.
@@ -180,12 +213,35 @@ mod tests {
             arrived: false,
             collision: None,
             scenario: "right_turn".into(),
+            hazard: Some("cut_in".into()),
+            outcome: OUTCOME_TIMEOUT.into(),
             learner_step: 10,
             env_steps: 400,
         };
         let json = serde_json::to_value(&e).unwrap();
         assert_eq!(json["return"], -2.5);
         assert!(json["collision"].is_null());
+        assert_eq!((json["hazard"].as_str(), json["outcome"].as_str()), (Some("cut_in"), Some("timeout")));
         assert_eq!(serde_json::from_value::<EpisodeRecord>(json).unwrap(), e);
+    }
+
+    #[test]
+    fn an_episode_line_from_before_hazards_and_outcomes_still_parses() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join(EPISODES_FILE);
+        let old = r#"{"time_secs":1.5,"episode_index":3,"actor_id":"actor-0","env":1,"return":-2.5,"steps":40,"arrived":false,"collision":"vehicle","scenario":"random","learner_step":10,"env_steps":400}"#;
+        std::fs::write(&path, format!("{old}\n{old}\n")).unwrap();
+        let read = read_episodes(&path).unwrap();
+        assert_eq!(read.len(), 2);
+        assert_eq!((read[0].hazard.as_deref(), read[0].outcome.as_str()), (None, ""));
+        assert_eq!((read[0].collision.as_deref(), read[0].steps), (Some("vehicle"), 40));
+    }
+
+    #[test]
+    fn outcomes_derive_from_the_flags_of_older_actors() {
+        assert_eq!(derived_outcome(true, false), OUTCOME_ARRIVED);
+        assert_eq!(derived_outcome(false, true), OUTCOME_COLLISION);
+        assert_eq!(derived_outcome(false, false), OUTCOME_TIMEOUT);
+        assert!(OUTCOMES.contains(&derived_outcome(false, false)));
     }
 }

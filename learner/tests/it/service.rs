@@ -267,3 +267,57 @@ async fn streams_wait_for_a_learner_behind_the_replay_ratio() {
     assert!(owed > 100, "without the hold the burst leaves the learner behind: {owed} updates owed");
     assert!(held == 0.0, "nothing is held with update_lag_limit = 0: held_secs {held}");
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn episode_summaries_reach_episodes_jsonl_with_their_hazard_and_outcome() {
+    use learner::telemetry::records::read_episodes;
+    let dir = tempfile::tempdir().unwrap();
+    let running = start_tiny(dir.path(), false, None).await;
+    let mut c = client(&running).await;
+    let a = register(&mut c, "a").await;
+    let summary = |episode: u64, hazard: &str, outcome: &str, arrived: bool, collision: &str| pb::EpisodeSummary {
+        env: 0,
+        episode,
+        episode_return: 2.5,
+        steps: 10,
+        arrived,
+        collision: collision.into(),
+        scenario: "random".into(),
+        hazard: hazard.into(),
+        outcome: outcome.into(),
+    };
+    let with =
+        |seq: u64, episodes: Vec<pb::EpisodeSummary>| pb::ExperienceBatch { episodes, ..batch(&a.actor_id, seq, steps(seq, 0, 3, 256)) };
+    let acks = send(
+        &mut c,
+        vec![with(
+            1,
+            vec![
+                summary(0, "pedestrian_crossing", "collision", false, "walker"),
+                summary(1, "", "timeout", false, ""),
+                // From an actor that predates hazard and outcome.
+                summary(2, "", "", true, ""),
+            ],
+        )],
+    )
+    .await;
+    assert!(acks[0].is_ok(), "{acks:?}");
+    // An unknown kind is refused with the batch, as the other malformed fields are.
+    let out = send(&mut c, vec![with(2, vec![summary(3, "meteor", "collision", false, "vehicle")])]).await;
+    let (code, msg) = out[0].as_ref().expect_err("refused");
+    assert_eq!(*code, Code::InvalidArgument, "{msg}");
+    assert!(msg.contains("episode summary 0: unknown hazard `meteor`"), "{msg}");
+    running.stop().await.unwrap();
+
+    let eps = read_episodes(&dir.path().join("run/episodes.jsonl")).unwrap();
+    let got: Vec<(Option<&str>, &str, bool, Option<&str>)> =
+        eps.iter().map(|e| (e.hazard.as_deref(), e.outcome.as_str(), e.arrived, e.collision.as_deref())).collect();
+    assert_eq!(
+        got,
+        [(Some("pedestrian_crossing"), "collision", false, Some("walker")), (None, "timeout", false, None), (None, "arrived", true, None)]
+    );
+    // The line itself names both fields (no hazard: null).
+    let text = std::fs::read_to_string(dir.path().join("run/episodes.jsonl")).unwrap();
+    assert!(text.lines().next().unwrap().contains(r#""hazard":"pedestrian_crossing","outcome":"collision""#), "{text}");
+    assert!(text.lines().nth(1).unwrap().contains(r#""hazard":null,"outcome":"timeout""#), "{text}");
+}

@@ -1,5 +1,5 @@
 //! Drawing the curves with plotters: the panels (smoothed return, loss on a log axis, mean Q,
-//! greedy evaluations) on one x axis, lines in pieces over shaded bands, round-number ticks, a
+//! greedy evaluations, per-hazard-kind shares) on one x axis, lines in pieces over shaded bands, round-number ticks, a
 //! legend placed away from the data, and the embedded font.
 
 use std::ops::Range;
@@ -54,11 +54,12 @@ impl TextSizes {
 
 /// Draws the panels and writes the PNG; errors as text.
 pub(super) fn draw(out: &Path, (width, height): (u32, u32), smoothing: usize, curves: &Curves) -> Result<(), String> {
-    let Curves { x_axis, x, returns, loss, mean_q, evals, with_eval } = curves;
+    let Curves { x_axis, x, returns, loss, mean_q, evals, with_eval, hazards } = curves;
     let root = BitMapBackend::new(out, (width, height)).into_drawing_area();
     root.fill(&WHITE).map_err(|e| e.to_string())?;
-    // A fourth panel when any run has periodic greedy evaluations.
-    let rows = if *with_eval { 4 } else { 3 };
+    // A fourth panel when any run has periodic greedy evaluations; then one per hazard kind.
+    let eval_rows = usize::from(*with_eval);
+    let rows = 3 + eval_rows + hazards.len();
     let panels = root.split_evenly((rows, 1));
     let sizes = TextSizes::for_panel(height / rows as u32);
     let x_fmt: &dyn Fn(&f64) -> String = match x_axis {
@@ -101,6 +102,13 @@ pub(super) fn draw(out: &Path, (width, height): (u32, u32), smoothing: usize, cu
     if *with_eval {
         panel("Greedy evaluation: route types completed in at least half their runs", "route types (of 7)", evals)
             .draw(&panels[3], x.clone(), -0.2..7.2, evals, &|v| fmt_value(*v))
+            .map_err(|e| e.to_string())?;
+    }
+
+    for (k, h) in hazards.iter().enumerate() {
+        let title = format!("Hazard {}: share arrived (solid), collided (dashed); last {smoothing} of its episodes", h.kind);
+        panel(&title, "share of episodes", &h.series)
+            .draw(&panels[3 + eval_rows + k], x.clone(), -0.05..1.05, &h.series, &|v| fmt_value(*v))
             .map_err(|e| e.to_string())?;
     }
 
@@ -254,6 +262,8 @@ impl Panel<'_> {
             for piece in &s.pieces {
                 if let [only] = piece.as_slice() {
                     chart.draw_series(std::iter::once(Circle::new((only.x, only.mean), 3, colour.filled())))?;
+                } else if s.dashed {
+                    chart.draw_series(DashedLineSeries::new(piece.iter().map(|b| (b.x, b.mean)), 8, 5, colour.stroke_width(2)))?;
                 } else {
                     chart.draw_series(LineSeries::new(piece.iter().map(|b| (b.x, b.mean)), colour.stroke_width(2)))?;
                 }
@@ -266,6 +276,12 @@ impl Panel<'_> {
                     EmptyElement::at((x, y))
                         + Rectangle::new([(0, -6), (20, 6)], fill)
                         + PathElement::new(vec![(0, 0), (20, 0)], colour.stroke_width(3))
+                });
+            } else if s.dashed {
+                entry.legend(move |(x, y)| {
+                    EmptyElement::at((x, y))
+                        + PathElement::new(vec![(0, 0), (7, 0)], colour.stroke_width(3))
+                        + PathElement::new(vec![(13, 0), (20, 0)], colour.stroke_width(3))
                 });
             } else {
                 entry.legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], colour.stroke_width(3)));

@@ -3,7 +3,8 @@
 //!
 //! [`plot_groups`] draws panels stacked vertically on one x axis (minutes of training or
 //! environment steps): the smoothed episode return, the training loss, the mean Q-value and, when
-//! the runs have them, the periodic greedy evaluations. A line is one run, or one agent over
+//! the runs have them, the periodic greedy evaluations and, per hazard kind of the training
+//! episodes, the shares that arrived and collided. A line is one run, or one agent over
 //! several seeds (a [`RunGroup`]) drawn as the mean with a min–max band. Text is drawn with a
 //! subset of DejaVu Sans embedded in the binary (`assets/DejaVuSans-Plot.ttf`, made by
 //! `assets/make_plot_font.py`, license in `assets/DejaVuSans-LICENSE.txt`), so plotting needs no
@@ -22,8 +23,8 @@ pub use error::PlotError;
 pub use grid::XAxis;
 use grid::{GRID_POINTS, Grid, band, resample, smooth};
 pub use groups::RunGroup;
-use learner::telemetry::records::TrainRecord;
-use series::{Curves, Run, Series, disambiguate, effective_window, read_run};
+use learner::telemetry::records::{EpisodeRecord, TrainRecord};
+use series::{Curves, HazardPanel, Run, Series, disambiguate, effective_window, hazard_kinds, read_run};
 
 /// Options of a plot.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -51,6 +52,9 @@ pub struct PlotSummary {
     pub runs: Vec<RunSummary>,
     /// One per line: per group of runs, in the order given.
     pub groups: Vec<GroupSummary>,
+    /// The hazard kinds that got a panel: every kind of any run's episodes, in sim-core's order
+    /// (empty when no episode had a hazard: no hazard panel).
+    pub hazard_kinds: Vec<String>,
 }
 
 /// What was plotted of one run.
@@ -110,7 +114,10 @@ pub fn plot_runs(run_dirs: &[PathBuf], out: &Path, opts: &PlotOptions) -> Result
 /// 2. "Loss" from `train.jsonl` (log scale if all values are positive);
 /// 3. "Mean Q" from `train.jsonl`;
 /// 4. with any `eval.jsonl`, the route types the periodic greedy evaluations mastered (a single
-///    run's evaluations marked with dots).
+///    run's evaluations marked with dots);
+/// 5. per hazard kind of any run's episodes (`hazard` in `episodes.jsonl`), one panel: the
+///    trailing share of that kind's episodes that arrived (solid) and that collided (dashed), over
+///    `opts.smoothing` of them (shrunk as for the return). None for runs without hazard episodes.
 ///
 /// Clean lines: each run's curve is resampled onto a common grid of [`GRID_POINTS`] x values,
 /// interpolating linearly between its points (loss, mean Q and evaluations are averaged over a
@@ -160,11 +167,16 @@ pub fn plot_groups(groups: &[RunGroup], out: &Path, opts: &PlotOptions) -> Resul
     });
     let grid = Grid::spanning(xs, GRID_POINTS);
 
-    let mut summary = PlotSummary { runs: Vec::new(), groups: Vec::new() };
+    let kinds = hazard_kinds(runs.iter().flatten());
+    let mut hazards: Vec<HazardPanel> = kinds.iter().map(|k| HazardPanel { kind: k.clone(), series: Vec::new() }).collect();
+    let mut summary = PlotSummary { runs: Vec::new(), groups: Vec::new(), hazard_kinds: kinds.clone() };
     let (mut returns, mut loss, mut mean_q, mut evals) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
     for (i, ((group, group_runs), label)) in groups.iter().zip(&runs).zip(labels).enumerate() {
         let colour = COLOURS[i % COLOURS.len()];
         let (mut return_values, mut loss_values, mut q_values, mut eval_values) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+        // Per hazard kind, per run: the shares arrived and collided.
+        let mut arrived_values: Vec<Vec<Vec<Option<f64>>>> = vec![Vec::new(); kinds.len()];
+        let mut collided_values: Vec<Vec<Vec<Option<f64>>>> = vec![Vec::new(); kinds.len()];
         let mut window_note = None;
         for run in group_runs {
             let window = effective_window(opts.smoothing, run.episodes.len());
@@ -183,6 +195,17 @@ pub fn plot_groups(groups: &[RunGroup], out: &Path, opts: &PlotOptions) -> Resul
             let eval_points: Vec<(f64, f64)> =
                 run.eval.iter().map(|e| (x.of(e.time_secs, e.env_steps), f64::from(e.route_types_mastered))).collect();
             eval_values.push(resample(&smooth(&eval_points, 1, &grid), &grid));
+            for (k, kind) in kinds.iter().enumerate() {
+                let of_kind: Vec<_> = run.episodes.iter().filter(|e| e.hazard.as_ref() == Some(kind)).collect();
+                let kind_window = effective_window(opts.smoothing, of_kind.len());
+                let share = |f: fn(&EpisodeRecord) -> bool| {
+                    let points: Vec<(f64, f64)> =
+                        of_kind.iter().map(|e| (x.of(e.time_secs, e.env_steps), if f(e) { 1.0 } else { 0.0 })).collect();
+                    resample(&smooth(&points, kind_window, &grid), &grid)
+                };
+                arrived_values[k].push(share(|e| e.arrived));
+                collided_values[k].push(share(|e| e.collision.is_some()));
+            }
             summary.runs.push(RunSummary {
                 name: run.name.clone(),
                 group: label.clone(),
@@ -222,10 +245,15 @@ pub fn plot_groups(groups: &[RunGroup], out: &Path, opts: &PlotOptions) -> Resul
             pieces: band(values, &grid),
             band: several,
             markers: Vec::new(),
+            dashed: false,
         };
         returns.push(series(return_label, &return_values));
         loss.push(series(label.clone(), &loss_values));
         mean_q.push(series(label.clone(), &q_values));
+        for (panel, (arrived, collided)) in hazards.iter_mut().zip(arrived_values.iter().zip(&collided_values)) {
+            panel.series.push(series(format!("{label} arrived"), arrived));
+            panel.series.push(Series { dashed: true, ..series(format!("{label} collided"), collided) });
+        }
         let mut eval_series = series(label, &eval_values);
         if !several {
             eval_series.markers =
@@ -235,7 +263,7 @@ pub fn plot_groups(groups: &[RunGroup], out: &Path, opts: &PlotOptions) -> Resul
     }
 
     let with_eval = runs.iter().flatten().any(|r| !r.eval.is_empty());
-    let curves = Curves { x_axis: x, x: grid.range(), returns, loss, mean_q, evals, with_eval };
+    let curves = Curves { x_axis: x, x: grid.range(), returns, loss, mean_q, evals, with_eval, hazards };
     draw(out, (opts.width, opts.height), opts.smoothing, &curves)
         .map_err(|message| PlotError::Draw { path: out.to_path_buf(), message })?;
     Ok(summary)

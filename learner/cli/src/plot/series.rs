@@ -6,6 +6,7 @@ use std::ops::Range;
 use std::path::Path;
 
 use plotters::style::RGBColor;
+use sim_core::hazards::HazardKind;
 
 use super::error::PlotError;
 use super::grid::{BandPoint, XAxis};
@@ -79,6 +80,16 @@ pub(super) struct Curves {
     pub(super) evals: Vec<Series>,
     /// Whether any run has periodic greedy evaluations (the fourth panel).
     pub(super) with_eval: bool,
+    /// One panel per hazard kind of any run's episodes (none when no episode had a hazard).
+    pub(super) hazards: Vec<HazardPanel>,
+}
+
+/// The panel of one hazard kind: per group of runs, the rolling share of the kind's episodes that
+/// arrived (a solid line) and that collided (dashed).
+pub(super) struct HazardPanel {
+    /// The kind's name (`stalled_car`, …).
+    pub(super) kind: String,
+    pub(super) series: Vec<Series>,
 }
 
 /// One group's line in a panel.
@@ -92,6 +103,8 @@ pub(super) struct Series {
     pub(super) band: bool,
     /// Points marked with a dot as well (a single run's evaluations, few and discrete).
     pub(super) markers: Vec<(f64, f64)>,
+    /// Whether the line is dashed (a second line of the same group in one panel).
+    pub(super) dashed: bool,
 }
 
 impl Series {
@@ -110,8 +123,19 @@ impl Series {
             pieces: self.pieces.iter().map(|p| p.iter().map(map).collect()).collect(),
             band: self.band,
             markers: self.markers.iter().map(|&(x, y)| (x, f(y))).collect(),
+            dashed: self.dashed,
         }
     }
+}
+
+/// The hazard kinds of the runs' episodes, each once: sim-core's kinds in their order, then any
+/// other name (a newer simulator's) alphabetically.
+pub(super) fn hazard_kinds<'a>(runs: impl Iterator<Item = &'a Run>) -> Vec<String> {
+    let mut kinds: Vec<String> = runs.flat_map(|r| r.episodes.iter().filter_map(|e| e.hazard.clone())).collect();
+    let order = |k: &String| (HazardKind::ALL.iter().position(|h| h.name() == k).unwrap_or(HazardKind::ALL.len()), k.clone());
+    kinds.sort_by_key(order);
+    kinds.dedup();
+    kinds
 }
 
 /// The smallest and largest finite values, if any.
@@ -140,6 +164,34 @@ mod tests {
     fn bounds_skip_non_finite_values() {
         assert_eq!(bounds([3.0, f64::NAN, -1.0, 2.0].into_iter()), Some((-1.0, 3.0)));
         assert_eq!(bounds(std::iter::empty()), None);
+    }
+
+    #[test]
+    fn hazard_kinds_come_in_the_simulators_order_once_each() {
+        let episode = |hazard: Option<&str>| EpisodeRecord {
+            time_secs: 0.0,
+            episode_index: 1,
+            actor_id: "a".into(),
+            env: 0,
+            episode_return: 0.0,
+            steps: 1,
+            arrived: false,
+            collision: None,
+            scenario: "random".into(),
+            hazard: hazard.map(str::to_owned),
+            outcome: String::new(),
+            learner_step: 0,
+            env_steps: 1,
+        };
+        let run = |hazards: &[Option<&str>]| Run {
+            name: "r".into(),
+            episodes: hazards.iter().map(|&h| episode(h)).collect(),
+            train: Vec::new(),
+            eval: Vec::new(),
+        };
+        let runs = [run(&[Some("cut_in"), None, Some("zeppelin"), Some("cut_in")]), run(&[Some("stalled_car"), Some("cut_in")])];
+        assert_eq!(hazard_kinds(runs.iter()), ["stalled_car", "cut_in", "zeppelin"]);
+        assert!(hazard_kinds([run(&[None, None])].iter()).is_empty());
     }
 
     #[test]

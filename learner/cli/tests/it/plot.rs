@@ -1,6 +1,7 @@
 //! The learning-curve plotter on synthetic run directories: it renders a non-blank PNG of the
-//! requested size, draws a group of seeds as a line over a band, and reads the metrics files
-//! strictly except for a truncated last line.
+//! requested size, draws a group of seeds as a line over a band, draws a panel per hazard kind
+//! of the episodes (none without), and reads the metrics files strictly except for a truncated
+//! last line.
 
 use std::collections::HashMap;
 use std::fmt::Write as _;
@@ -34,6 +35,8 @@ fn episode(i: u64, ret: f64) -> EpisodeRecord {
         arrived: ret > 5.0,
         collision: if ret > 5.0 { None } else { Some("vehicle".into()) },
         scenario: "right_turn".into(),
+        hazard: None,
+        outcome: if ret > 5.0 { "arrived" } else { "collision" }.into(),
         learner_step: i * 10,
         env_steps: i * 100,
     }
@@ -338,4 +341,65 @@ fn a_group_of_seeds_draws_its_mean_over_a_band_beside_a_single_run() {
     let (_, _, pixels) = decode_png(&out);
     let band = pixels.iter().filter(|p| (200..=222).contains(&p[0]) && (220..=234).contains(&p[1]) && (234..=244).contains(&p[2])).count();
     assert!(band < 200, "{band} band pixels without a band");
+}
+
+#[test]
+fn hazard_episodes_get_a_panel_per_kind_and_runs_without_them_none() {
+    let tmp = tempfile::tempdir().unwrap();
+    let run = tmp.path().join("hazards");
+    synthetic_run(&run, 400, 10.0, 6);
+    // Every other episode has a hazard: stalled cars are passed more and more often, cut-ins
+    // always end in a collision.
+    let mut eps = read_episodes(&run.join("episodes.jsonl")).unwrap();
+    for e in &mut eps {
+        let i = e.episode_index;
+        let (hazard, arrived) = match i % 4 {
+            0 => (Some("stalled_car"), i % 8 == 0 || i > 200),
+            2 => (Some("cut_in"), false),
+            _ => (None, e.arrived),
+        };
+        e.hazard = hazard.map(str::to_owned);
+        e.arrived = arrived;
+        e.collision = (!arrived).then(|| "vehicle".to_owned());
+        e.outcome = if arrived { "arrived" } else { "collision" }.into();
+    }
+    write_jsonl(&run.join("episodes.jsonl"), &eps);
+    let opts = PlotOptions { x: XAxis::EnvSteps, ..PlotOptions::default() };
+    let out = tmp.path().join("hazards.png");
+    let summary = plot_runs(std::slice::from_ref(&run), &out, &opts).unwrap();
+    assert_eq!(summary.hazard_kinds, ["stalled_car", "cut_in"]);
+    // Five panels: the last (cut-ins) holds the run's blue, flat at a collision share of 1.
+    let (w, h, pixels) = decode_png(&out);
+    let blue_rows: Vec<usize> = (0..h as usize)
+        .filter(|&y| pixels[y * w as usize..(y + 1) * w as usize].iter().filter(|&&p| p == [31, 119, 180]).count() > w as usize / 3)
+        .collect();
+    assert!(blue_rows.iter().any(|&y| y > h as usize * 4 / 5), "no long blue line in the bottom panel: {blue_rows:?}");
+
+    // The same run written before hazards and outcomes were recorded: lines without either field
+    // parse, and there is no hazard panel.
+    // The same directory name as the run's: the legends match.
+    let old = tmp.path().join("old").join("hazards");
+    fs::create_dir_all(&old).unwrap();
+    let mut text = String::new();
+    for e in &eps {
+        let mut v = serde_json::to_value(e).unwrap();
+        let fields = v.as_object_mut().unwrap();
+        fields.remove("hazard");
+        fields.remove("outcome");
+        writeln!(text, "{v}").unwrap();
+    }
+    fs::write(old.join("episodes.jsonl"), text).unwrap();
+    fs::copy(run.join("train.jsonl"), old.join("train.jsonl")).unwrap();
+    let old_out = tmp.path().join("old.png");
+    let summary = plot_runs(std::slice::from_ref(&old), &old_out, &opts).unwrap();
+    assert_eq!((summary.runs[0].episodes, summary.hazard_kinds.len()), (400, 0));
+    // Without hazards the plot is the three panels it always was: the same picture as a run whose
+    // lines carry the fields with no hazard.
+    for e in &mut eps {
+        e.hazard = None;
+    }
+    write_jsonl(&run.join("episodes.jsonl"), &eps);
+    let plain_out = tmp.path().join("plain.png");
+    plot_runs(&[run], &plain_out, &opts).unwrap();
+    assert_eq!(decode_png(&old_out).2, decode_png(&plain_out).2);
 }
