@@ -530,6 +530,16 @@ mod tests {
     }
 
     #[test]
+    fn bad_action_sets_stacks_and_reward_weights_are_refused_naming_the_field() {
+        let e = RunConfig::from_toml("[agent]\naction_set = \"full\"\n", "run.toml").unwrap_err().to_string();
+        assert!(e.contains("action_set") && e.contains("unknown variant `full`") && e.contains("`full27`"), "{e}");
+        let e = RunConfig::from_toml("[env.camera]\nstack = 0\n", "run.toml").unwrap_err().to_string();
+        assert_eq!(e, "config file run.toml: field `env.camera.stack`: 0 frames is outside 1..=8 (1: a single frame)");
+        let e = RunConfig::from_toml("[env.reward]\nkind = \"progress\"\nlane_weight = nan\n", "run.toml").unwrap_err().to_string();
+        assert!(e.contains("field `env.reward.lane_weight`"), "{e}");
+    }
+
+    #[test]
     fn a_checkpoint_with_another_action_set_or_stack_is_refused_naming_both() {
         let run = RunConfig::preset("hybrid-tuned").unwrap();
         run.check_checkpoint_body(&run.clone()).unwrap();

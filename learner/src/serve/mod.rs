@@ -27,7 +27,7 @@ use crate::storage::versions::VersionLease;
 use crate::telemetry::metrics_log::MetricsLog;
 use crate::training::dqn::Dqn;
 use agent::checkpoint::Counters;
-use agent::config::{Durability, RunConfig};
+use agent::config::Durability;
 use endpoints::GrpcServer;
 use run_dir::OpenedRun;
 
@@ -170,12 +170,6 @@ pub(crate) async fn start_with(opts: ServeOptions, train: Trainer) -> Result<Run
     let mut dqn = Dqn::new(shape, &cfg.agent);
     let mut counters = Counters::default();
     if opts.resume {
-        // Checked before the weights load, whose shape check would only say that sizes differ. A
-        // configuration that does not parse here is left to the load to judge.
-        let saved = run_dir.join(agent::checkpoint::DIR).join(agent::checkpoint::CONFIG);
-        if let Some(saved) = std::fs::read_to_string(&saved).ok().and_then(|t| RunConfig::from_toml(&t, "checkpoint").ok()) {
-            cfg.check_checkpoint_body(&saved).map_err(|e| anyhow::anyhow!("resuming {}: {e}", run_dir.display()))?;
-        }
         let loaded = checkpoint::load(&run_dir, &mut dqn).with_context(|| format!("loading the checkpoint in {}", run_dir.display()))?;
         counters = loaded.counters;
         tracing::info!(learner_step = counters.learner_step, weights_version = counters.weights_version, "resumed");

@@ -44,6 +44,10 @@ pub(super) fn open(opts: &ServeOptions) -> Result<OpenedRun> {
     if opts.resume {
         let text = checkpoint_config_text(&run_dir)?;
         let from_ckpt = RunConfig::from_toml(&text, &format!("{}/checkpoint/config.toml", run_dir.display()))?;
+        // What the network's inputs and outputs mean is named first, both values said.
+        if opts.config.is_some() {
+            cfg.check_checkpoint_body(&from_ckpt).map_err(|e| anyhow::anyhow!("--resume {}: {e}", run_dir.display()))?;
+        }
         if opts.config.is_some() && from_ckpt.env != cfg.env {
             bail!(
                 "--config describes another environment than the checkpoint in {}: resume without --config, or start a new run directory",

@@ -332,3 +332,31 @@ async fn a_checkpoint_that_cannot_be_written_is_retried_and_shown() {
     assert!(st.learner_step >= step);
     running.stop().await.unwrap();
 }
+
+/// Issue row: "a checkpoint with another action set or stack is refused, naming both": resuming
+/// with a configuration whose action set or frame stack differs from the checkpoint's fails
+/// before any weights load, naming the field and both values.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn resuming_with_another_action_set_or_stack_is_refused_naming_both() {
+    let dir = tempfile::tempdir().unwrap();
+    start_tiny(dir.path(), false, |_| {}).await.stop().await.unwrap();
+    let resume_with = |edit: &dyn Fn(&mut RunConfig)| {
+        let mut cfg = RunConfig::tiny(&dir.path().join("run"));
+        cfg.service.max_message_bytes = 1 << 20;
+        edit(&mut cfg);
+        let path = dir.path().join("other.toml");
+        std::fs::write(&path, cfg.to_toml()).unwrap();
+        ServeOptions { config: Some(path), resume: true, ..ServeOptions::default() }
+    };
+    let full = resume_with(&|c| c.agent.action_set = sim_core::actions::ActionSet::Full27);
+    let e = format!("{:#}", start(full).await.err().expect("another action set is refused"));
+    assert!(
+        e.contains("agent.action_set: the checkpoint was trained with `paper6` (6 actions), this run is configured with `full27`"),
+        "{e}"
+    );
+    let stacked = resume_with(&|c| c.env.camera.as_mut().unwrap().stack = 2);
+    let e = format!("{:#}", start(stacked).await.err().expect("another stack is refused"));
+    assert!(e.contains("env.camera.stack: the checkpoint sees 1 frame(s), this run is configured with 2"), "{e}");
+    // The same configuration resumes.
+    start(resume_with(&|_| {})).await.expect("the same configuration resumes").stop().await.unwrap();
+}
