@@ -28,7 +28,9 @@ class HybridDriveEnv(gymnasium.Env):
     - ``vehicles``, ``parked_cars``: traffic (defaults 20 and 12).
     - ``map``: path of a map file (docs/MAP-FORMAT.md); default the embedded town.
     - ``action_set``: ``"paper6"`` (forward, forward-left, forward-right, brake, brake-left,
-      brake-right).
+      brake-right), ``"paper12"`` (the seed code's earlier twelve), or a full-authority set —
+      ``"full15"``, ``"full21"``, ``"full27"``: 5, 7 or 9 steering values × full throttle, coast,
+      full brake (docs/EVALUATION.md).
     - ``config``: a dict of any ``EnvConfig`` field (``learner config``'s ``[env]`` table, e.g.
       ``{"reward": {"d0": 10.0}}``), applied first; the arguments above override it.
     - ``render_mode="rgb_array"``: ``render()`` returns the bird's-eye view (``birdseye_size``

@@ -56,8 +56,8 @@ def test_bad_arguments_name_the_field():
         gymnasium.make("HybridDrive-v0", config={"reward": {"d0": -1}})
     with pytest.raises(ValueError, match="config: unknown field `spead`"):
         gymnasium.make("HybridDrive-v0", config={"spead": 3})
-    with pytest.raises(ValueError, match="action_set \"paper12\": unknown variant `paper12`, expected `paper6`"):
-        gymnasium.make("HybridDrive-v0", action_set="paper12")
+    with pytest.raises(ValueError, match="action_set \"paper7\": unknown variant `paper7`, expected one of `paper6`, `paper12`, `full15`, `full21`, `full27`"):
+        gymnasium.make("HybridDrive-v0", action_set="paper7")
 
 
 def test_bad_actions_and_finished_episodes():

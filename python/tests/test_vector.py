@@ -174,3 +174,20 @@ def test_gymnasium_vector_wrappers_see_whole_episodes():
                 assert info["episode"]["l"][i] == steps[i]
                 lengths.append(int(steps[i]))
     assert len(lengths) >= 2
+
+
+def test_a_stacked_camera_observes_the_last_frames_in_one_array():
+    # `[env.camera] stack = 3`: the camera array holds the last three gray frames, oldest first.
+    env = gymnasium.make("HybridDrive-v0", camera=(16, 16), config={"camera": {"stack": 3}})
+    assert env.observation_space["camera"].shape == (16, 16, 3)
+    obs, _ = env.reset(seed=1)
+    first = obs["camera"]
+    assert first.shape == (16, 16, 3)
+    assert (first[..., 0] == first[..., 2]).all(), "at the start every frame is the first"
+    frames = [first[..., 2]]
+    for _ in range(3):
+        obs, *_ = env.step(0)
+        frames.append(obs["camera"][..., 2])
+    np.testing.assert_array_equal(obs["camera"][..., 0], frames[-3])
+    np.testing.assert_array_equal(obs["camera"][..., 1], frames[-2])
+    assert not (frames[0] == frames[-1]).all(), "driving changes the view"

@@ -349,13 +349,15 @@ async fn resuming_with_another_action_set_or_stack_is_refused_naming_both() {
         ServeOptions { config: Some(path), resume: true, ..ServeOptions::default() }
     };
     let full = resume_with(&|c| c.agent.action_set = sim_core::actions::ActionSet::Full27);
-    let e = format!("{:#}", start(full).await.err().expect("another action set is refused"));
+    let Err(e) = start(full).await else { panic!("another action set is refused") };
+    let e = format!("{e:#}");
     assert!(
         e.contains("agent.action_set: the checkpoint was trained with `paper6` (6 actions), this run is configured with `full27`"),
         "{e}"
     );
     let stacked = resume_with(&|c| c.env.camera.as_mut().unwrap().stack = 2);
-    let e = format!("{:#}", start(stacked).await.err().expect("another stack is refused"));
+    let Err(e) = start(stacked).await else { panic!("another stack is refused") };
+    let e = format!("{e:#}");
     assert!(e.contains("env.camera.stack: the checkpoint sees 1 frame(s), this run is configured with 2"), "{e}");
     // The same configuration resumes.
     start(resume_with(&|_| {})).await.expect("the same configuration resumes").stop().await.unwrap();
