@@ -55,11 +55,13 @@ impl TextSizes {
 /// Draws the panels and writes the PNG; errors as text.
 pub(super) fn draw(out: &Path, (width, height): (u32, u32), smoothing: usize, curves: &Curves) -> Result<(), String> {
     let Curves { x_axis, x, returns, loss, mean_q, evals, with_eval, hazards } = curves;
-    let root = BitMapBackend::new(out, (width, height)).into_drawing_area();
-    root.fill(&WHITE).map_err(|e| e.to_string())?;
     // A fourth panel when any run has periodic greedy evaluations; then one per hazard kind.
     let eval_rows = usize::from(*with_eval);
     let rows = 3 + eval_rows + hazards.len();
+    // `height` is that of four panels: hazard panels make the image taller, not every panel flatter.
+    let height = if rows > 4 { (height as usize * rows / 4) as u32 } else { height };
+    let root = BitMapBackend::new(out, (width, height)).into_drawing_area();
+    root.fill(&WHITE).map_err(|e| e.to_string())?;
     let panels = root.split_evenly((rows, 1));
     let sizes = TextSizes::for_panel(height / rows as u32);
     let x_fmt: &dyn Fn(&f64) -> String = match x_axis {

@@ -33,7 +33,8 @@ pub struct PlotOptions {
     pub smoothing: usize,
     /// Image width in pixels.
     pub width: u32,
-    /// Image height in pixels.
+    /// Image height in pixels, for up to four panels; a run with hazard panels gets a taller
+    /// image, each panel as high as one of four.
     pub height: u32,
     /// The x axis of every panel.
     pub x: XAxis,
