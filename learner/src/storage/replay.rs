@@ -537,18 +537,32 @@ impl Replay {
         for _ in 0..n {
             let (k, p) = self.draw();
             let t = self.transitions[k];
-            let held = self.stack_of(t.obs, &mut obs_ids).and_then(|()| self.stack_of(t.next, &mut next_ids));
-            assert!(
-                held.is_ok(),
-                "replay: transition {k} refers to frames {}→{} whose stacks leave the ring [{}, {}): {held:?}",
-                t.obs,
-                t.next,
-                self.first_frame,
-                self.next_frame
-            );
-            self.put_stack(&obs_ids, &mut out.images);
+            if self.cfg.stack == 1 {
+                // One frame each: copied straight, without walking stacks (the common case).
+                assert!(
+                    self.holds_frame(t.obs) && self.holds_frame(t.next),
+                    "replay: transition {k} refers to frames {}→{} outside the ring [{}, {})",
+                    t.obs,
+                    t.next,
+                    self.first_frame,
+                    self.next_frame
+                );
+                out.images.extend_from_slice(self.frame(t.obs).0);
+                out.next_images.extend_from_slice(self.frame(t.next).0);
+            } else {
+                let held = self.stack_of(t.obs, &mut obs_ids).and_then(|()| self.stack_of(t.next, &mut next_ids));
+                assert!(
+                    held.is_ok(),
+                    "replay: transition {k} refers to frames {}→{} whose stacks leave the ring [{}, {}): {held:?}",
+                    t.obs,
+                    t.next,
+                    self.first_frame,
+                    self.next_frame
+                );
+                self.put_stack(&obs_ids, &mut out.images);
+                self.put_stack(&next_ids, &mut out.next_images);
+            }
             out.scalars.push(self.frame(t.obs).1);
-            self.put_stack(&next_ids, &mut out.next_images);
             out.next_scalars.push(self.frame(t.next).1);
             out.actions.push(t.action);
             out.rewards.push(t.reward);
