@@ -182,6 +182,24 @@ pub(super) fn smooth(points: &[(f64, f64)], window: usize, grid: &Grid) -> Vec<V
     curves
 }
 
+/// The trailing mean of the last `window` points (in their order), from the `window`-th point on,
+/// as one stretch: for sparse, irregular series (one hazard kind's episodes) whose spacing says
+/// nothing of a pause, where [`smooth`]'s gaps would cut the curve and make its window refill.
+pub(super) fn trailing_mean(points: &[(f64, f64)], window: usize) -> Vec<Vec<(f64, f64)>> {
+    assert!(window >= 1);
+    if points.len() < window {
+        return Vec::new();
+    }
+    let mut sum: f64 = points[..window - 1].iter().map(|p| p.1).sum();
+    let mut out = Vec::with_capacity(points.len() + 1 - window);
+    for i in window - 1..points.len() {
+        sum += points[i].1;
+        out.push((points[i].0, sum / window as f64));
+        sum -= points[i + 1 - window].1;
+    }
+    vec![out]
+}
+
 /// The widest spacing of consecutive x values (`sorted` by x) that is not a gap: [`GAP_CELLS`]
 /// grid cells, or [`GAP_SPACINGS`] times the median spacing if that is wider.
 fn gap_width(sorted: &[(f64, f64)], cell: f64) -> f64 {
@@ -296,6 +314,14 @@ mod tests {
         assert_eq!(g.indices_within(1.2, 2.5), 1..4);
         assert_eq!(g.indices_within(-5.0, 0.5), 0..0);
         assert_eq!(g.indices_within(2.9, 9.0), 4..5);
+    }
+
+    #[test]
+    fn a_trailing_mean_is_one_stretch_whatever_the_spacing() {
+        let points = [(0.0, 1.0), (1.0, 0.0), (50.0, 1.0), (51.0, 1.0)];
+        assert_eq!(trailing_mean(&points, 2), vec![vec![(1.0, 0.5), (50.0, 0.5), (51.0, 1.0)]]);
+        assert_eq!(trailing_mean(&points, 1).concat().len(), 4);
+        assert!(trailing_mean(&points, 5).is_empty());
     }
 
     #[test]

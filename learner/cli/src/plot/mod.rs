@@ -21,7 +21,7 @@ use std::path::{Path, PathBuf};
 use draw::{COLOURS, draw, register_font};
 pub use error::PlotError;
 pub use grid::XAxis;
-use grid::{GRID_POINTS, Grid, band, resample, smooth};
+use grid::{GRID_POINTS, Grid, band, resample, smooth, trailing_mean};
 pub use groups::RunGroup;
 use learner::telemetry::records::{EpisodeRecord, TrainRecord};
 use series::{Curves, HazardPanel, Run, Series, disambiguate, effective_window, hazard_kinds, read_run};
@@ -202,7 +202,7 @@ pub fn plot_groups(groups: &[RunGroup], out: &Path, opts: &PlotOptions) -> Resul
                 let share = |f: fn(&EpisodeRecord) -> bool| {
                     let points: Vec<(f64, f64)> =
                         of_kind.iter().map(|e| (x.of(e.time_secs, e.env_steps), if f(e) { 1.0 } else { 0.0 })).collect();
-                    resample(&smooth(&points, kind_window, &grid), &grid)
+                    resample(&trailing_mean(&points, kind_window), &grid)
                 };
                 arrived_values[k].push(share(|e| e.arrived));
                 collided_values[k].push(share(|e| e.collision.is_some()));
