@@ -7,6 +7,8 @@
 //! of the baselines' driving each set keeps is measured in docs/EVALUATION.md. [`ActionSet::nearest`] maps a continuous
 //! control to a set's action (`actor eval --quantise`, docs/EVALUATION.md).
 
+use std::sync::OnceLock;
+
 use serde::{Deserialize, Serialize};
 
 use crate::vehicle::Action;
@@ -120,7 +122,7 @@ impl ActionSet {
     pub fn nearest(self, control: Action) -> usize {
         let c = control.clamped();
         let actions = self.actions();
-        let (du, ds) = (spacing(actions.iter().map(|a| a.throttle - a.brake)), spacing(actions.iter().map(|a| a.steer)));
+        let (du, ds) = self.spacings();
         let (u, s) = (c.throttle - c.brake, c.steer);
         let mut best = (f32::INFINITY, 0);
         for (i, a) in actions.iter().enumerate() {
@@ -130,6 +132,24 @@ impl ActionSet {
             }
         }
         best.1
+    }
+}
+
+impl ActionSet {
+    /// The set's spacing on (throttle − brake, steer), worked out once per set: [`ActionSet::nearest`]
+    /// runs every step of a quantised driver.
+    fn spacings(self) -> (f32, f32) {
+        static SPACINGS: OnceLock<Vec<(f32, f32)>> = OnceLock::new();
+        let all = SPACINGS.get_or_init(|| {
+            ActionSet::ALL
+                .iter()
+                .map(|set| {
+                    let a = set.actions();
+                    (spacing(a.iter().map(|a| a.throttle - a.brake)), spacing(a.iter().map(|a| a.steer)))
+                })
+                .collect()
+        });
+        all[ActionSet::ALL.iter().position(|&s| s == self).expect("every set is in ALL")]
     }
 }
 

@@ -33,6 +33,15 @@ pub enum Driver {
 }
 
 impl Driver {
+    /// The configuration of the agent's own body, for a checkpoint (see [`eval_env_config`]).
+    #[must_use]
+    pub fn body(&self) -> Option<&EnvConfig> {
+        match self {
+            Driver::ModelBased(_) => None,
+            Driver::Greedy(g) => Some(&g.cfg.env),
+        }
+    }
+
     /// The actions for the runs `live` of `envs`, chosen in lockstep: the planner for each run, or
     /// the network for all of them in one forward pass.
     pub fn actions(&mut self, envs: &[Env], live: &[usize]) -> Vec<Action> {
@@ -61,17 +70,6 @@ pub(crate) fn eval_env_config(body: Option<&EnvConfig>, traffic: Option<usize>) 
         env.traffic.vehicles = n;
     }
     env
-}
-
-impl Driver {
-    /// The configuration of the agent's own body, for a checkpoint (see [`eval_env_config`]).
-    #[must_use]
-    pub fn body(&self) -> Option<&EnvConfig> {
-        match self {
-            Driver::ModelBased(_) => None,
-            Driver::Greedy(g) => Some(&g.cfg.env),
-        }
-    }
 }
 
 /// What to evaluate and how.
