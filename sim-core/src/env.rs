@@ -40,6 +40,8 @@ pub struct Observation {
     /// ([`Env::stacked_image`]).
     #[serde(skip)]
     pub image: Option<Image>,
+    /// The vector sensor's reading, if `[env.vector]` is configured (`sensor`).
+    pub vector: Option<Vec<f32>>,
 }
 
 /// Diagnostics of a step.
@@ -124,6 +126,8 @@ pub struct Env {
     frames: Option<FrameStack>,
     /// Scratch: the vehicles as the renderers see them.
     scene: Vec<SceneBox>,
+    /// The vector sensor's last reading (empty without `[env.vector]`).
+    vector: Vec<f32>,
 }
 
 impl Env {
@@ -176,6 +180,7 @@ impl Env {
             image: Image::new(0, 0, 1),
             frames,
             scene: Vec::new(),
+            vector: Vec::new(),
         };
         env.reset(0, Scenario::Random)?;
         Ok(env)
@@ -257,6 +262,7 @@ impl Env {
         if let Some(f) = &mut self.frames {
             f.reset(&self.image);
         }
+        self.sense();
         Ok(self.observation())
     }
 
@@ -312,6 +318,7 @@ impl Env {
         if let Some(f) = &mut self.frames {
             f.push(&self.image);
         }
+        self.sense();
         Ok(StepResult { observation: self.observation(), reward: terms.total, terminated, truncated, info: self.last_info.clone() })
     }
 
@@ -323,6 +330,7 @@ impl Env {
             d: (self.cfg.variant == Variant::Hybrid).then(|| self.planned_tracking().d),
             path: (self.cfg.variant == Variant::Hybrid).then(|| self.path_features()),
             image: self.camera.is_some().then(|| self.stacked_image().clone()),
+            vector: self.vector().map(<[f32]>::to_vec),
         }
     }
 
@@ -404,6 +412,22 @@ impl Env {
     #[must_use]
     pub fn stacked_image(&self) -> &Image {
         self.frames.as_ref().map_or(&self.image, FrameStack::image)
+    }
+
+    /// The vector sensor's reading of the current state (`[env.vector]`; `None` without it).
+    #[must_use]
+    pub fn vector(&self) -> Option<&[f32]> {
+        self.cfg.vector.is_some().then_some(self.vector.as_slice())
+    }
+
+    /// Reads the vector sensor, when configured.
+    fn sense(&mut self) {
+        let Some(vc) = &self.cfg.vector else { return };
+        let n = vc.len(self.cfg.variant);
+        self.vector.clear();
+        // Skeleton: ego speed, then zeros (the sensor fills the rest).
+        self.vector.push((self.ego.speed / self.cfg.vehicle.max_speed).clamp(-1.0, 1.0));
+        self.vector.resize(n, 0.0);
     }
 
     /// Renders the bird's-eye debug view around the ego vehicle.

@@ -23,6 +23,7 @@ pub mod reward_ordering;
 pub mod route;
 pub mod route_types;
 pub mod scenario;
+pub mod sensor;
 pub mod topology;
 pub mod town;
 pub mod traffic;

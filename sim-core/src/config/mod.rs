@@ -17,6 +17,7 @@ use crate::camera::CameraConfig;
 use crate::hazards::config::HazardsConfig;
 use crate::planner::kind::PlannerKind;
 use crate::reward::RewardConfig;
+use crate::sensor::VectorConfig;
 use crate::traffic::IdmParams;
 use crate::vehicle::VehicleParams;
 
@@ -55,6 +56,10 @@ pub struct EnvConfig {
     pub vehicle: VehicleParams,
     /// The front camera (omit the table for none: no image is rendered).
     pub camera: Option<CameraConfig>,
+    /// The vector sensor: the world as a list of objects, rays and the planner's path (omit the
+    /// table for none). See `sensor`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub vector: Option<VectorConfig>,
     /// Hazards the planner does not know: stalled car, pedestrian crossing, cut-in, hard brake,
     /// construction, opposite overtaker, junction runner.
     pub hazards: HazardsConfig,
@@ -78,6 +83,7 @@ impl Default for EnvConfig {
             traffic: TrafficConfig::default(),
             vehicle: VehicleParams::default(),
             camera: Some(CameraConfig::default()),
+            vector: None,
             hazards: HazardsConfig::default(),
             planner: PlannerKind::Astar,
         }
@@ -170,6 +176,9 @@ impl EnvConfig {
         check(v.max_steer < 1.5, "vehicle.max_steer", || format!("{} rad must be below 1.5 (~86°)", v.max_steer))?;
         if let Some(c) = &self.camera {
             c.validate()?;
+        }
+        if let Some(v) = &self.vector {
+            v.validate()?;
         }
         self.hazards.validate()
     }

@@ -1,0 +1,104 @@
+//! The vector sensor (`[env.vector]`): the world as objects, for agents that see a list of numbers
+//! instead of pixels. One observation is a flat `f32` vector of fixed layout ([`VectorConfig::segments`]):
+//! the ego's own state; for the hybrid agent the planner's path (d, path features, the next
+//! waypoints in the ego frame); the nearest objects the ego could see, nearest first, padded with
+//! absent slots; and range rays to obstacles and to the road's edge. Every value lies in [−1, 1]
+//! (the learner refuses anything else). Nothing privileged beyond the planner's route: an object
+//! hidden behind a building or another object is not in the list.
+//!
+//! The layout is part of what trained checkpoints expect: [`LAYOUT_VERSION`] names it, and actors
+//! and learner must agree on it (checked at `Register`).
+
+use serde::{Deserialize, Serialize};
+
+use crate::config::error::ConfigError;
+use crate::config::variant::Variant;
+
+/// The layout's name: actors send theirs at `Register`, checkpoints record it. Change it whenever
+/// a field's meaning, scale or position changes.
+pub const LAYOUT_VERSION: &str = "vector/1";
+
+/// The ego's own state: speed, front-wheel angle, longitudinal acceleration.
+pub const EGO_FIELDS: usize = 3;
+/// The planner's path (hybrid only): d, lateral offset, near and far heading angles.
+pub const PATH_FIELDS: usize = 4;
+/// Per object: present, x, y, vx, vy (ego frame), cos and sin of its heading relative to the
+/// ego's, length, width, and its kind one-hot (vehicle, parked car, walker, prop).
+pub const OBJECT_FIELDS: usize = 13;
+/// Per ray: distance to the nearest obstacle, distance to the road's edge.
+pub const RAY_FIELDS: usize = 2;
+
+/// What the vector sensor reports.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct VectorConfig {
+    /// Nearest visible objects listed (K); fewer present are padded with absent slots.
+    pub objects: u32,
+    /// The planner's next waypoints in the ego frame (M; hybrid only).
+    pub waypoints: u32,
+    /// Range rays, evenly spaced around the vehicle, the first straight ahead (N).
+    pub rays: u32,
+    /// Range of objects and rays, metres: farther is absent (objects) or the ray's full length.
+    pub range: f32,
+}
+
+impl Default for VectorConfig {
+    fn default() -> Self {
+        Self { objects: 8, waypoints: 5, rays: 16, range: 50.0 }
+    }
+}
+
+/// A named run of values in the vector: `count` items of `fields` values each.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+pub struct Segment {
+    pub name: &'static str,
+    pub count: usize,
+    pub fields: usize,
+}
+
+impl VectorConfig {
+    /// Checks every field; the error names it (prefixed `vector.`).
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        let err = |field: &str, message: String| Err(ConfigError { field: format!("vector.{field}"), message });
+        if self.objects > 64 {
+            return err("objects", format!("{} is more than the supported 64", self.objects));
+        }
+        if self.waypoints > 32 {
+            return err("waypoints", format!("{} is more than the supported 32", self.waypoints));
+        }
+        if self.rays > 360 {
+            return err("rays", format!("{} is more than the supported 360", self.rays));
+        }
+        if !(self.range.is_finite() && (5.0..=200.0).contains(&self.range)) {
+            return err("range", format!("{} m is outside 5..=200", self.range));
+        }
+        Ok(())
+    }
+
+    /// The layout, first to last, for `variant` (the path segments are the hybrid agent's only).
+    #[must_use]
+    pub fn segments(&self, variant: Variant) -> Vec<Segment> {
+        let mut s = vec![Segment { name: "ego", count: 1, fields: EGO_FIELDS }];
+        if variant == Variant::Hybrid {
+            s.push(Segment { name: "path", count: 1, fields: PATH_FIELDS });
+            s.push(Segment { name: "waypoints", count: self.waypoints as usize, fields: 2 });
+        }
+        s.push(Segment { name: "objects", count: self.objects as usize, fields: OBJECT_FIELDS });
+        s.push(Segment { name: "rays", count: self.rays as usize, fields: RAY_FIELDS });
+        s
+    }
+
+    /// Values in one observation for `variant`.
+    #[must_use]
+    pub fn len(&self, variant: Variant) -> usize {
+        self.segments(variant).iter().map(|s| s.count * s.fields).sum()
+    }
+
+    /// The layout in words, as checkpoints record it: the version and each segment,
+    /// e.g. `vector/1 ego:1x3 path:1x4 waypoints:5x2 objects:8x13 rays:16x2`.
+    #[must_use]
+    pub fn describe(&self, variant: Variant) -> String {
+        let parts: Vec<String> = self.segments(variant).iter().map(|s| format!("{}:{}x{}", s.name, s.count, s.fields)).collect();
+        format!("{LAYOUT_VERSION} {}", parts.join(" "))
+    }
+}
