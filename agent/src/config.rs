@@ -385,8 +385,11 @@ impl RunConfig {
         if !s.tls_client_ca.is_empty() && s.tls_cert.is_empty() {
             return Err(("service.tls_client_ca".into(), "mutual TLS needs the server's own tls_cert and tls_key too".into()));
         }
-        if self.env.camera.is_none() {
-            return Err(("env.camera".into(), "the agent drives from the camera: a camera must be configured".into()));
+        if self.env.camera.is_none() && self.env.vector.is_none() {
+            return Err((
+                "env.camera".into(),
+                "the agent needs something to see: configure a camera ([env.camera]), the vector sensor ([env.vector]) or both".into(),
+            ));
         }
         Ok(())
     }
@@ -406,14 +409,16 @@ impl RunConfig {
     }
 
     /// The network this configuration describes (its camera, scalar inputs, actions, filters
-    /// and hidden units). Validation guarantees a camera.
+    /// and hidden units). Without a camera it has no image and is a multilayer perceptron over the
+    /// vector sensor's reading (`NetShape`).
     #[must_use]
     pub fn net_shape(&self) -> NetShape {
-        let cam = self.env.camera.as_ref().expect("validated: a camera is configured");
+        let (height, width, channels) =
+            self.env.camera.as_ref().map_or((0, 0, 0), |cam| (cam.height as usize, cam.width as usize, cam.stacked_channels()));
         NetShape {
-            height: cam.height as usize,
-            width: cam.width as usize,
-            channels: cam.stacked_channels(),
+            height,
+            width,
+            channels,
             scalars: self.scalar_inputs(),
             actions: self.agent.action_set.actions().len(),
             filters: self.agent.conv_filters,
@@ -421,12 +426,24 @@ impl RunConfig {
         }
     }
 
-    /// Bytes of one camera frame as an actor sends it and the replay stores it (`H × W × C`); the
-    /// network's input holds `[env.camera] stack` of them. Validation guarantees a camera.
+    /// Bytes of one camera frame as an actor sends it and the replay stores it (`H × W × C`; 0
+    /// without a camera); the network's input holds `[env.camera] stack` of them.
     #[must_use]
     pub fn frame_bytes(&self) -> usize {
-        let cam = self.env.camera.as_ref().expect("validated: a camera is configured");
-        cam.width as usize * cam.height as usize * usize::from(cam.channels())
+        self.env.camera.as_ref().map_or(0, |cam| cam.width as usize * cam.height as usize * usize::from(cam.channels()))
+    }
+
+    /// Values of one vector sensor reading (`[env.vector]`; 0 without it).
+    #[must_use]
+    pub fn vector_len(&self) -> usize {
+        self.env.vector.as_ref().map_or(0, |v| v.len(self.env.variant))
+    }
+
+    /// The vector sensor's layout in words (`sim_core::sensor::VectorConfig::describe`), or
+    /// `None` without it.
+    #[must_use]
+    pub fn vector_layout(&self) -> Option<String> {
+        self.env.vector.as_ref().map(|v| v.describe(self.env.variant))
     }
 
     /// Refuses to load the weights of a checkpoint trained with `saved` into this run when the
@@ -445,6 +462,25 @@ impl RunConfig {
                 theirs.name()
             ));
         }
+        let (ours, theirs) = (self.vector_layout(), saved.vector_layout());
+        if ours != theirs {
+            let say = |l: &Option<String>| l.clone().map_or_else(|| "no vector sensor".to_owned(), |l| format!("`{l}`"));
+            return Err(format!(
+                "env.vector: the checkpoint sees {}, this run is configured with {}: configure the checkpoint's [env.vector] or start a new run",
+                say(&theirs),
+                say(&ours)
+            ));
+        }
+        let (ours, theirs) =
+            (self.env.camera.as_ref().map(|c| (c.width, c.height, c.rgb)), saved.env.camera.as_ref().map(|c| (c.width, c.height, c.rgb)));
+        if ours.is_some() != theirs.is_some() {
+            let say = |c: Option<(u32, u32, bool)>| c.map_or_else(|| "no camera".to_owned(), |(w, h, _)| format!("a {w}x{h} camera"));
+            return Err(format!(
+                "env.camera: the checkpoint sees {}, this run is configured with {}: configure the checkpoint's [env.camera] or start a new run",
+                say(theirs),
+                say(ours)
+            ));
+        }
         let stack = |c: &RunConfig| c.env.camera.as_ref().map_or(1, |cam| cam.stack);
         if stack(self) != stack(saved) {
             return Err(format!(
@@ -457,16 +493,17 @@ impl RunConfig {
         Ok(())
     }
 
-    /// Bytes per pixel of one camera frame (1 gray, 3 RGB). Validation guarantees a camera.
+    /// Bytes per pixel of one camera frame (1 gray, 3 RGB; 1 without a camera, whose frames are
+    /// empty).
     #[must_use]
     pub fn frame_channels(&self) -> usize {
-        usize::from(self.env.camera.as_ref().expect("validated: a camera is configured").channels())
+        self.env.camera.as_ref().map_or(1, |cam| usize::from(cam.channels()))
     }
 
-    /// Frames the network sees at once (`[env.camera] stack`). Validation guarantees a camera.
+    /// Frames the network sees at once (`[env.camera] stack`; 1 without a camera).
     #[must_use]
     pub fn frame_stack(&self) -> usize {
-        self.env.camera.as_ref().expect("validated: a camera is configured").stack as usize
+        self.env.camera.as_ref().map_or(1, |cam| cam.stack as usize)
     }
 
     /// A run small enough to train in seconds, for tests and smoke runs: a 16×16 gray camera,
@@ -485,10 +522,14 @@ impl RunConfig {
         cfg
     }
 
-    /// Scalar inputs of the network besides the image: speed; d for the hybrid agent; and its
-    /// path features with `agent.path_features`.
+    /// Inputs of the network besides the image: with the vector sensor, its reading (which holds
+    /// speed, d and the path itself); otherwise speed, d for the hybrid agent, and its path
+    /// features with `agent.path_features` (`features::network_inputs`).
     #[must_use]
     pub fn scalar_inputs(&self) -> usize {
+        if self.env.vector.is_some() {
+            return self.vector_len();
+        }
         match self.env.variant {
             Variant::Hybrid if self.agent.path_features => 2 + sim_core::env::PATH_FEATURES,
             Variant::Hybrid => 2,

@@ -1,6 +1,8 @@
 //! How an observation becomes the network's inputs besides the image (which goes in as its bytes,
 //! scaled by 1/255 inside `fastnet`): the raw scalars an actor sends and the replay stores with
-//! each frame, and the selection and scaling that give the network's scalar inputs.
+//! each frame, and the selection and scaling that give the network's scalar inputs — or, for a
+//! run with the vector sensor (`[env.vector]`), that sensor's reading, which already holds speed,
+//! d and the path, scaled ([`push_network_inputs`]).
 
 use sim_core::config::Variant;
 use sim_core::env::PATH_FEATURES;
@@ -42,6 +44,33 @@ pub fn scalar_features(cfg: &RunConfig, raw: &RawScalars) -> Vec<f32> {
         Variant::Hybrid => vec![speed / r.v0(), d / r.d0],
         Variant::EndToEnd => vec![speed / r.v0()],
     }
+}
+
+/// Appends the network's inputs besides the image for one observation to `out`: the vector
+/// sensor's reading `vector` when the run has the sensor, else [`scalar_features`] of `raw`.
+/// [`RunConfig::scalar_inputs`] values in either case: an end-to-end agent given a hybrid
+/// environment's reading (evaluation runs the hybrid variant for everyone) sees it without the
+/// planner's segments.
+pub fn push_network_inputs(cfg: &RunConfig, raw: &RawScalars, vector: &[f32], out: &mut Vec<f32>) {
+    if let Some(v) = &cfg.env.vector {
+        if cfg.env.variant == Variant::EndToEnd && vector.len() == v.len(Variant::Hybrid) && vector.len() != cfg.vector_len() {
+            out.extend(sim_core::sensor::without_planner(v, vector));
+        } else {
+            out.extend_from_slice(vector);
+        }
+    } else {
+        out.extend(scalar_features(cfg, raw));
+    }
+}
+
+/// The network's inputs besides the image for several environments' current states, concatenated.
+#[must_use]
+pub fn env_inputs<'a>(cfg: &RunConfig, envs: impl IntoIterator<Item = &'a sim_core::env::Env>) -> Vec<f32> {
+    let mut out = Vec::new();
+    for e in envs {
+        push_network_inputs(cfg, &env_scalars(e), e.vector().unwrap_or(&[]), &mut out);
+    }
+    out
 }
 
 #[cfg(test)]

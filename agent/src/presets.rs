@@ -7,11 +7,12 @@ use sim_core::camera::CameraConfig;
 use sim_core::config::Variant;
 use sim_core::hazards::episodes::use_suite_episodes;
 use sim_core::reward::RewardConfig;
+use sim_core::sensor::VectorConfig;
 
 use crate::config::RunConfig;
 
 /// The named presets, with what each is.
-pub const PRESETS: [(&str, &str); 5] = [
+pub const PRESETS: [(&str, &str); 7] = [
     ("paper", "the paper's hybrid agent: d in the observation, r_w in the reward; plain one-step DQN, uniform replay"),
     ("end-to-end", "the paper's baseline: the same network and training, camera and speed only (no d input, no r_w)"),
     (
@@ -25,6 +26,13 @@ pub const PRESETS: [(&str, &str); 5] = [
         "`hybrid-tuned` for hazards: full-authority actions (full27), the progress reward, training episodes like the \
          hazard suite's (half of them with a hazard), a 64x64 60-degree camera stacking 4 frames",
     ),
+    (
+        "hybrid-vector",
+        "`hybrid-hazards` seeing the world as objects: the vector sensor (ego, the planner's path and next waypoints, \
+         the nearest visible objects, range rays) instead of the camera, an MLP Q-network, batches of 256 and a replay \
+         ratio of 8",
+    ),
+    ("e2e-vector", "`hybrid-vector` without the planner: no d, path or waypoints in the input and no r_w in the reward"),
 ];
 
 impl RunConfig {
@@ -49,8 +57,8 @@ impl RunConfig {
         let (variant, tuned) = match name {
             "paper" => (Variant::Hybrid, false),
             "end-to-end" => (Variant::EndToEnd, false),
-            "hybrid-tuned" | "hybrid-hazards" => (Variant::Hybrid, true),
-            "end-to-end-tuned" => (Variant::EndToEnd, true),
+            "hybrid-tuned" | "hybrid-hazards" | "hybrid-vector" => (Variant::Hybrid, true),
+            "end-to-end-tuned" | "e2e-vector" => (Variant::EndToEnd, true),
             other => {
                 let names: Vec<&str> = PRESETS.iter().map(|p| p.0).collect();
                 return Err(format!("unknown preset `{other}`: expected one of {}", names.join(", ")));
@@ -87,7 +95,7 @@ impl RunConfig {
             a.epsilon_decay_steps = 100_000;
             a.path_features = variant == Variant::Hybrid;
         }
-        if name == "hybrid-hazards" {
+        if matches!(name, "hybrid-hazards" | "hybrid-vector" | "e2e-vector") {
             // docs/EVALUATION.md: the ceiling of each action set, the reward's ordering of
             // outcomes, and the pixels a hazard covers per camera.
             a.action_set = ActionSet::Full27;
@@ -98,6 +106,18 @@ impl RunConfig {
             let camera = env.camera.as_mut().expect("set above");
             (camera.width, camera.height, camera.hfov_deg, camera.stack) = (64, 64, 60.0, 4);
             cfg.agent.replay_ratio = 0.5;
+        }
+        if matches!(name, "hybrid-vector" | "e2e-vector") {
+            // docs/MODEL.md, "The vector observation": no camera, so the network is an MLP whose
+            // update costs a few hundred times less than the camera network's; the learner can
+            // afford DQN's replay ratio and larger batches (docs/PERFORMANCE.md).
+            cfg.env.camera = None;
+            cfg.env.vector = Some(VectorConfig::default());
+            let a = &mut cfg.agent;
+            a.batch_size = 256;
+            a.replay_ratio = 8.0;
+            a.replay_capacity = 1_000_000;
+            a.min_replay = 10_000;
         }
         Ok(cfg)
     }
@@ -127,7 +147,10 @@ mod tests {
         let same = RunConfig { preset: paper.preset.clone(), env: EnvConfig { variant: Variant::Hybrid, ..e2e.env.clone() }, ..e2e };
         assert_eq!(same, paper);
         let e = RunConfig::preset("papr").unwrap_err();
-        assert_eq!(e, "unknown preset `papr`: expected one of paper, end-to-end, hybrid-tuned, end-to-end-tuned, hybrid-hazards");
+        assert_eq!(
+            e,
+            "unknown preset `papr`: expected one of paper, end-to-end, hybrid-tuned, end-to-end-tuned, hybrid-hazards, hybrid-vector, e2e-vector"
+        );
     }
 
     #[test]
@@ -167,6 +190,27 @@ mod tests {
     }
 
     #[test]
+    fn the_vector_presets_are_hybrid_hazards_with_the_sensor_instead_of_the_camera() {
+        let hv = RunConfig::preset("hybrid-vector").unwrap();
+        let ev = RunConfig::preset("e2e-vector").unwrap();
+        let hz = RunConfig::preset("hybrid-hazards").unwrap();
+        for cfg in [&hv, &ev] {
+            cfg.validate().unwrap();
+            assert!(cfg.env.camera.is_none());
+            assert_eq!(cfg.env.vector, Some(VectorConfig::default()));
+            assert_eq!((cfg.agent.batch_size, cfg.agent.replay_ratio), (256, 8.0));
+            assert_eq!((cfg.agent.action_set, &cfg.env.reward, &cfg.env.hazards), (hz.agent.action_set, &hz.env.reward, &hz.env.hazards));
+            let shape = cfg.net_shape();
+            assert_eq!((shape.height, shape.width, shape.channels), (0, 0, 0), "an MLP: {shape:?}");
+            assert_eq!(shape.scalars, cfg.vector_len());
+        }
+        assert_eq!((hv.env.variant, ev.env.variant), (Variant::Hybrid, Variant::EndToEnd));
+        // The planner's path and waypoints are the hybrid agent's only.
+        let v = VectorConfig::default();
+        assert_eq!(hv.vector_len() - ev.vector_len(), sim_core::sensor::PATH_FIELDS + 2 * v.waypoints as usize);
+    }
+
+    #[test]
     fn a_file_overrides_its_preset_field_by_field() {
         let text = "preset = \"end-to-end\"\n[agent]\nlearning_rate = 0.001\n[env.camera]\nwidth = 32\n";
         let cfg = RunConfig::from_toml(text, "t.toml").unwrap();
@@ -187,7 +231,7 @@ mod tests {
         let e = RunConfig::from_toml("preset = \"fast\"\n", "run.toml").unwrap_err();
         assert_eq!(
             e.to_string(),
-            "config file run.toml: field `preset`: unknown preset `fast`: expected one of paper, end-to-end, hybrid-tuned, end-to-end-tuned, hybrid-hazards"
+            "config file run.toml: field `preset`: unknown preset `fast`: expected one of paper, end-to-end, hybrid-tuned, end-to-end-tuned, hybrid-hazards, hybrid-vector, e2e-vector"
         );
         let e = RunConfig::from_toml("preset = 3\n", "run.toml").unwrap_err();
         assert!(e.to_string().contains("preset"), "{e}");

@@ -129,6 +129,7 @@ impl Steps {
                     speed: (t % 13) as f32,
                     d: 0.1,
                     path: [0.2; PATH_FEATURES],
+                    vector: Default::default(),
                     action: t % 6,
                     reward: 0.5,
                     terminated: t % 100 == 99 && env == 0,
@@ -142,6 +143,7 @@ impl Steps {
 fn replay_for(cfg: &RunConfig, frame: usize) -> Replay {
     let a = &cfg.agent;
     Replay::new(ReplayConfig {
+        vector_len: 0,
         capacity: 4_000,
         max_bytes: a.replay_max_bytes,
         frame_bytes: frame,
@@ -185,7 +187,7 @@ fn replay_log_append(records: u64) -> anyhow::Result<u64> {
     let frame = shape.height * shape.width * shape.channels;
     let dir = tempfile::tempdir()?;
     let mut file = std::fs::File::create(dir.path().join("0.seg"))?;
-    file.write_all(&format::segment_header(frame))?;
+    file.write_all(&format::segment_header(format::StepShape::frames(frame)))?;
     let mut steps = Steps::new(frame);
     let mut position = 0u64;
     for _ in 0..records {

@@ -52,8 +52,12 @@ async fn actors_train_survive_each_other_and_a_learner_restart() {
 
     // A malformed batch from a third party is refused and disturbs no one.
     let mut bad = proto::client::connect(&addr, None).await.unwrap();
-    let reg = bad.register(pb::RegisterRequest { name: "bad".into(), envs: 1, protocol: 1 }).await.unwrap().into_inner();
-    let step = pb::Step { obs: Some(pb::Observation { image: vec![0; 3], speed: 0.0, d: 0.0, path: Vec::new() }), ..pb::Step::default() };
+    let reg =
+        bad.register(pb::RegisterRequest { name: "bad".into(), envs: 1, protocol: 1, ..Default::default() }).await.unwrap().into_inner();
+    let step = pb::Step {
+        obs: Some(pb::Observation { image: vec![0; 3], speed: 0.0, d: 0.0, path: Vec::new(), vector: Vec::new() }),
+        ..pb::Step::default()
+    };
     let batch = pb::ExperienceBatch { actor_id: reg.actor_id, seq: 1, steps: vec![step], ..pb::ExperienceBatch::default() };
     let mut acks = bad.stream_experience(tokio_stream::iter(vec![batch])).await.unwrap().into_inner();
     assert_eq!(acks.message().await.unwrap_err().code(), tonic::Code::InvalidArgument);

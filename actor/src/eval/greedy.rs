@@ -90,7 +90,7 @@ pub fn load_checkpoint(path: &Path) -> Result<GreedyAgent> {
 /// The greedy actions (indices into the action set) of `agent` for each environment: one batched
 /// forward pass of the Q-network (the actors' fast path; the first of equal Q values).
 pub fn greedy_actions(agent: &mut GreedyAgent, envs: &[&Env]) -> Vec<u32> {
-    let scalars: Vec<f32> = envs.iter().flat_map(|e| scalar_features(&agent.cfg, &env_scalars(e))).collect();
+    let scalars = agent::features::env_inputs(&agent.cfg, envs.iter().copied());
     agent.net.greedy(envs.iter().map(|e| e.stacked_image().data.as_slice()), &scalars)
 }
 

@@ -56,13 +56,15 @@ impl Driver {
 }
 
 /// The environment every agent is evaluated in: the `paper` preset's world, scored with the
-/// paper's reward (hybrid variant), driven with the agent's own body — the vehicle and the camera
-/// (with its stack) of the checkpoint's configuration; its action set comes with its network.
+/// paper's reward (hybrid variant), driven with the agent's own body — the vehicle, the camera
+/// (with its stack) and the vector sensor of the checkpoint's configuration; its action set comes
+/// with its network.
 /// The baselines (`body` none) drive the default vehicle without a camera.
 pub(crate) fn eval_env_config(body: Option<&EnvConfig>, traffic: Option<usize>) -> EnvConfig {
     let mut env = RunConfig::preset("paper").expect("the paper preset exists").env;
     env.variant = Variant::Hybrid;
     env.camera = body.and_then(|b| b.camera.clone());
+    env.vector = body.and_then(|b| b.vector.clone());
     if let Some(b) = body {
         env.vehicle = b.vehicle;
     }

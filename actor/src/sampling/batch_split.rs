@@ -86,7 +86,7 @@ mod tests {
             .map(|t| pb::Step {
                 env: t % 3,
                 t,
-                obs: Some(pb::Observation { image: vec![7; image], speed: 1.0, d: 2.0, path: vec![0.1, 0.2, 0.3] }),
+                obs: Some(pb::Observation { image: vec![7; image], speed: 1.0, d: 2.0, path: vec![0.1, 0.2, 0.3], vector: Vec::new() }),
                 action: 2,
                 reward: 0.5,
                 ..pb::Step::default()

@@ -80,7 +80,12 @@ async fn register(
         let attempt = async {
             let mut client = connect(&opts.learner, token.clone()).await?;
             let reg = client
-                .register(pb::RegisterRequest { name: opts.name.clone(), envs: envs as u32, protocol: proto::v1::PROTOCOL })
+                .register(pb::RegisterRequest {
+                    name: opts.name.clone(),
+                    envs: envs as u32,
+                    protocol: proto::v1::PROTOCOL,
+                    vector_layout: sim_core::sensor::LAYOUT_VERSION.into(),
+                })
                 .await
                 .map_err(|s| anyhow::anyhow!("register: {}", s.message()))?
                 .into_inner();

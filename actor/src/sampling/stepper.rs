@@ -31,7 +31,7 @@ pub fn step_loop(
     batch_steps: usize,
     buffer_steps: usize,
 ) -> Result<()> {
-    anyhow::ensure!(cfg.env.camera.is_some(), "the run has no camera configured");
+    anyhow::ensure!(cfg.env.camera.is_some() || cfg.env.vector.is_some(), "the run has neither a camera nor the vector sensor");
     let shape = cfg.net_shape();
     // One thread: an actor's batch is a few frames, and actors share the cores with each other
     // and the learner.
@@ -57,6 +57,7 @@ pub fn step_loop(
             speed: o.speed,
             d: o.d.unwrap_or(0.0),
             path: o.path.map(Vec::from).unwrap_or_default(),
+            vector: o.vector.unwrap_or_default(),
         }
     };
     let episode_seed = |rng: &mut ChaCha8Rng| rng.next_u64();
@@ -76,7 +77,7 @@ pub fn step_loop(
             link.acting_version.store(version, Ordering::SeqCst);
         }
         // One batched forward pass for all environments.
-        let scalars: Vec<f32> = envs.iter().flat_map(|e| agent::features::scalar_features(cfg, &agent::features::env_scalars(e))).collect();
+        let scalars = agent::features::env_inputs(cfg, envs.iter());
         let greedy = net.greedy(envs.iter().map(|e| e.stacked_image().data.as_slice()), &scalars);
         let epsilon = cfg.epsilon(index, link.run_env_steps(total_steps));
         for (k, env) in envs.iter_mut().enumerate() {

@@ -187,6 +187,7 @@ pub(crate) async fn start_with(opts: ServeOptions, train: Trainer) -> Result<Run
         capacity: a.replay_capacity,
         max_bytes: a.replay_max_bytes,
         frame_bytes,
+        vector_len: cfg.vector_len(),
         channels: cfg.frame_channels(),
         stack: cfg.frame_stack(),
         gamma: a.gamma,
@@ -283,7 +284,8 @@ mod tests {
             assert_eq!(status, tonic_health::pb::health_check_response::ServingStatus::NotServing as i32, "service {service:?}");
         }
         // Data is refused, loudly.
-        let reg = c.register(pb::RegisterRequest { name: "a".into(), envs: 1, protocol: 1 }).await.unwrap().into_inner();
+        let reg =
+            c.register(pb::RegisterRequest { name: "a".into(), envs: 1, protocol: 1, ..Default::default() }).await.unwrap().into_inner();
         let step = pb::Step { obs: Some(pb::Observation { image: vec![0; 256], ..Default::default() }), ..Default::default() };
         let batch = pb::ExperienceBatch { actor_id: reg.actor_id, seq: 1, steps: vec![step], ..Default::default() };
         let mut acks = c.stream_experience(tokio_stream::iter(vec![batch])).await.unwrap().into_inner();
@@ -312,7 +314,8 @@ mod tests {
         };
         let running = start_with(ServeOptions { config: Some(cfg_path), ..ServeOptions::default() }, late).await.unwrap();
         let mut c = proto::v1::learner_client::LearnerClient::connect(format!("http://{}", running.addr)).await.unwrap();
-        let reg = c.register(pb::RegisterRequest { name: "a".into(), envs: 1, protocol: 1 }).await.unwrap().into_inner();
+        let reg =
+            c.register(pb::RegisterRequest { name: "a".into(), envs: 1, protocol: 1, ..Default::default() }).await.unwrap().into_inner();
         // Eight episodes of 100 steps (99 transitions each), one per batch, on one stream.
         let batches: Vec<_> = (0..8u64)
             .map(|e| {

@@ -7,7 +7,7 @@ use std::time::Instant;
 use anyhow::Result;
 
 use crate::storage::replay::Replay;
-use crate::storage::replay_log::{OnDamage, ReplayLog};
+use crate::storage::replay_log::{OnDamage, ReplayLog, StepShape};
 use agent::checkpoint::Counters;
 use agent::config::RunConfig;
 
@@ -24,8 +24,13 @@ pub(super) fn rebuild(
     let started = Instant::now();
     let checkpointed = counters.replay_log_position;
     let mut after = Counters::default();
-    let (log, found) =
-        ReplayLog::open(run_dir, frame_bytes, cfg.service.replay_log_segment_bytes, checkpointed, on_damage, |position, record| {
+    let (log, found) = ReplayLog::open(
+        run_dir,
+        StepShape { frame_bytes, vector_len: cfg.vector_len() },
+        cfg.service.replay_log_segment_bytes,
+        checkpointed,
+        on_damage,
+        |position, record| {
             let stored = replay.add_steps(record.actor, &record.steps) as u64;
             if position > checkpointed {
                 let env_steps = record.steps.iter().filter(|s| s.t > 0).count() as u64;
@@ -36,7 +41,8 @@ pub(super) fn rebuild(
                 after.replay_log_position = position;
             }
             replay.next_frame_id()
-        })?;
+        },
+    )?;
     // No actor continues an earlier process's streams.
     replay.end_all_streams();
     counters.env_steps += after.env_steps;

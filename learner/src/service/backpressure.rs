@@ -212,7 +212,8 @@ mod tests {
         let (mut c, reg) = loop {
             let attempt = async {
                 let Ok(mut c) = LearnerClient::<Channel>::connect(format!("http://{addr}")).await else { return None };
-                let reg = c.register(pb::RegisterRequest { name: name.clone(), envs: 1, protocol: pb::PROTOCOL }).await;
+                let reg =
+                    c.register(pb::RegisterRequest { name: name.clone(), envs: 1, protocol: pb::PROTOCOL, ..Default::default() }).await;
                 Some(reg.map(|r| (c, r.into_inner())))
             };
             match tokio::time::timeout(Duration::from_secs(5), attempt).await {

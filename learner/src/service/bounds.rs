@@ -1,6 +1,6 @@
 //! What an actor's numbers can physically be in this run, from its `[env]`: the speed the
 //! vehicle can reach, how far from its route it can get, the angles of the path features, and
-//! the rewards the configured reward (with its clip) can produce. A batch beyond them
+//! the rewards the configured reward (with its clip) can produce, the vector sensor's [−1, 1]. A batch beyond them
 //! (`validate.rs`) is refused: no simulator sends 1e30 m/s, a raw client or a broken actor does.
 //! Margins are generous: the bounds are there to refuse the impossible, not the unusual.
 
@@ -25,6 +25,9 @@ pub struct Bounds {
     pub reward: (f32, f32),
     /// |episode return|: the longest episode's steps × the largest |reward|.
     pub episode_return: f32,
+    /// |a vector sensor value|: the sensor clamps every value to [−1, 1] (`sim_core::sensor`),
+    /// so no margin: anything beyond is not the sensor's.
+    pub vector: f32,
 }
 
 impl Bounds {
@@ -60,6 +63,7 @@ impl Bounds {
             angle: std::f32::consts::PI + 0.01,
             reward,
             episode_return: (steps + 1.0) * reward.0.abs().max(reward.1.abs()),
+            vector: 1.0,
         }
     }
 }

@@ -53,6 +53,17 @@ impl Learner for LearnerService {
             return Err(Status::invalid_argument(format!("envs = {} must be 1..=4096", r.envs)));
         }
         let s = &self.shared;
+        if s.cfg.env.vector.is_some() && r.vector_layout != sim_core::sensor::LAYOUT_VERSION {
+            let theirs = if r.vector_layout.is_empty() {
+                "none (it predates the vector sensor)".to_owned()
+            } else {
+                format!("`{}`", r.vector_layout)
+            };
+            return Err(Status::failed_precondition(format!(
+                "vector_layout: this run observes the vector sensor in layout `{}`, the actor writes {theirs}: run an actor of this learner's version",
+                sim_core::sensor::LAYOUT_VERSION
+            )));
+        }
         let n = s.registrations.fetch_add(1, Ordering::SeqCst);
         let mut actors = s.actors.lock().expect("actors lock");
         // An actor that comes back under the same name (reconnected, or restarted) reuses its
@@ -341,6 +352,7 @@ fn expect(shared: &Shared) -> Expect {
         channels: shared.shape.channels,
         actions: shared.shape.actions as u32,
         path_features: shared.cfg.agent.path_features,
+        vector_len: shared.cfg.vector_len(),
         bounds: crate::service::bounds::Bounds::of(&shared.cfg.env),
     }
 }
@@ -409,6 +421,7 @@ fn store(shared: &Shared, b: pb::ExperienceBatch) -> Result<Stored, Status> {
                 speed: obs.speed,
                 d: obs.d,
                 path: obs.path.as_slice().try_into().unwrap_or_default(),
+                vector: std::borrow::Cow::Borrowed(&obs.vector),
                 action: s.action,
                 reward: s.reward,
                 terminated: s.terminated,

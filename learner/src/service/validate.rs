@@ -22,6 +22,8 @@ pub struct Expect {
     pub channels: usize,
     pub actions: u32,
     pub path_features: bool,
+    /// Values of the vector sensor's reading (`[env.vector]`), 0 when the run has none.
+    pub vector_len: usize,
     pub bounds: Bounds,
 }
 
@@ -92,6 +94,20 @@ pub fn check(x: &Expect, actor: &ActorRecord, b: &pb::ExperienceBatch) -> Result
             }
             0 | PATH_FEATURES => {}
             n => return invalid(format!("step {i}: {n} path features; expected {PATH_FEATURES} or none")),
+        }
+        if obs.vector.len() != x.vector_len {
+            let run = if x.vector_len == 0 {
+                "this run has no vector sensor".to_owned()
+            } else {
+                format!("this run's [env.vector] reads {} values", x.vector_len)
+            };
+            return invalid(format!("step {i}: vector has {} values; {run}", obs.vector.len()));
+        }
+        if let Some((k, v)) = obs.vector.iter().enumerate().find(|(_, v)| !(v.abs() <= x.bounds.vector)) {
+            return invalid(format!(
+                "step {i}: vector value {k} is {v}; the vector sensor's values are finite and within [-{b}, {b}]",
+                b = x.bounds.vector
+            ));
         }
         let path = obs.path.iter().map(|&v| ("path", v));
         for (name, v) in [("reward", s.reward), ("speed", obs.speed), ("d", obs.d)].into_iter().chain(path) {
@@ -203,6 +219,7 @@ mod tests {
             channels: 1,
             actions: 6,
             path_features: false,
+            vector_len: 0,
             bounds: Bounds::of(&sim_core::config::EnvConfig::default()),
         }
     }
@@ -212,7 +229,7 @@ mod tests {
             env,
             episode,
             t,
-            obs: Some(pb::Observation { image: vec![0; 4], speed: 1.0, d: 0.5, path: vec![] }),
+            obs: Some(pb::Observation { image: vec![0; 4], speed: 1.0, d: 0.5, path: vec![], vector: Vec::new() }),
             action: 1,
             ..pb::Step::default()
         }

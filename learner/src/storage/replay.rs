@@ -21,6 +21,7 @@
 //! predecessor never arrived (a break in the stream) has a stack that cannot be assembled: the
 //! transitions that would need it are not formed.
 
+use std::borrow::Cow;
 use std::collections::{HashMap, VecDeque};
 
 use agent::features::{RawScalars, raw_scalars};
@@ -42,6 +43,8 @@ pub struct ReplayConfig {
     pub frame_bytes: usize,
     /// Channels of a frame (C): a stack interleaves its frames per pixel, C bytes at a time.
     pub channels: usize,
+    /// Values of the vector sensor's reading stored with each frame (`[env.vector]`; 0 for none).
+    pub vector_len: usize,
     /// Frames per observation (N ≥ 1): a sampled image holds the transition's frame and the N − 1
     /// before it in its episode, N·`frame_bytes` bytes. 1 is no stacking.
     pub stack: usize,
@@ -64,6 +67,9 @@ pub struct StepRecord<'a> {
     pub d: f32,
     /// The planner's path features (zeros when the actor sent none).
     pub path: [f32; PATH_FEATURES],
+    /// The vector sensor's reading (`ReplayConfig::vector_len` values; empty for none): borrowed
+    /// from the wire, owned when read back from the log.
+    pub vector: Cow<'a, [f32]>,
     pub action: u32,
     pub reward: f32,
     pub terminated: bool,
@@ -129,6 +135,10 @@ pub struct Sample {
     /// The raw scalars of each observation.
     pub scalars: Vec<RawScalars>,
     pub next_scalars: Vec<RawScalars>,
+    /// The vector sensor's readings of each observation, concatenated (`vector_len` each; empty
+    /// without the sensor). Not stacked: the reading holds velocities itself.
+    pub vectors: Vec<f32>,
+    pub next_vectors: Vec<f32>,
     pub actions: Vec<u32>,
     pub rewards: Vec<f32>,
     pub discounts: Vec<f32>,
@@ -143,6 +153,8 @@ pub struct Replay {
     /// Frame ring: `frame_slots` frames; frame id `i` lives in slot `i % frame_slots`.
     frames: Vec<u8>,
     frame_scalars: Vec<RawScalars>,
+    /// Per frame slot: its vector sensor reading (`vector_len` values).
+    frame_vectors: Vec<f32>,
     /// Per frame slot: 1 + the id of the transition whose observation it is, or 0.
     observed_by: Vec<u64>,
     /// Per frame slot, with stacks only (empty for `stack` 1): the frame's predecessor in its
@@ -167,9 +179,10 @@ pub struct Replay {
     rng: ChaCha8Rng,
 }
 
-/// Bytes a stored frame takes: the image and its raw scalars (counted against the byte cap).
-fn frame_cost(frame_bytes: usize) -> u64 {
-    (frame_bytes + std::mem::size_of::<RawScalars>()) as u64
+/// Bytes a stored frame takes: the image, its raw scalars and its vector sensor reading
+/// (counted against the byte cap).
+fn frame_cost(frame_bytes: usize, vector_len: usize) -> u64 {
+    (frame_bytes + std::mem::size_of::<RawScalars>() + vector_len * std::mem::size_of::<f32>()) as u64
 }
 
 /// Per-transition bookkeeping bytes (counted against the byte cap).
@@ -180,7 +193,7 @@ const LINK_BYTES: u64 = std::mem::size_of::<Pred>() as u64 + 8;
 
 /// Bytes a stored frame takes under `cfg`: the frame itself, once, and its links if stacking.
 fn stored_frame_cost(cfg: &ReplayConfig) -> u64 {
-    frame_cost(cfg.frame_bytes) + if cfg.stack > 1 { LINK_BYTES } else { 0 }
+    frame_cost(cfg.frame_bytes, cfg.vector_len) + if cfg.stack > 1 { LINK_BYTES } else { 0 }
 }
 
 impl Replay {
@@ -206,6 +219,7 @@ impl Replay {
         Self {
             frames: vec![0; frame_slots * cfg.frame_bytes],
             frame_scalars: vec![RawScalars::default(); frame_slots],
+            frame_vectors: vec![0.0; frame_slots * cfg.vector_len],
             observed_by: vec![0; frame_slots],
             pred: vec![Pred::Start; if cfg.stack > 1 { frame_slots } else { 0 }],
             succ: vec![0; if cfg.stack > 1 { frame_slots } else { 0 }],
@@ -298,7 +312,7 @@ impl Replay {
                 _ if s.t == 0 => Pred::Start,
                 _ => Pred::Missing,
             };
-            let frame = self.push_frame(s.image, raw_scalars(s.speed, s.d, s.path), pred);
+            let frame = self.push_frame(s.image, raw_scalars(s.speed, s.d, s.path), &s.vector, pred);
             if continues {
                 let prev = stream.last_frame.expect("checked above");
                 stream.pending.push_back((prev, s.action, s.reward));
@@ -354,12 +368,14 @@ impl Replay {
     /// is at least as new as the oldest frame o of the `obs` stack. The ring overwrites frames in
     /// id order, so f is the oldest frame held, and a live transition's o is held: if f is in its
     /// `next` stack then o ≤ f, so o = f and the `obs` stack holds f too.
-    fn push_frame(&mut self, image: &[u8], scalars: RawScalars, pred: Pred) -> u64 {
+    fn push_frame(&mut self, image: &[u8], scalars: RawScalars, vector: &[f32], pred: Pred) -> u64 {
         let id = self.next_frame;
         let slot = (id % self.frame_slots as u64) as usize;
         let fb = self.cfg.frame_bytes;
         self.frames[slot * fb..(slot + 1) * fb].copy_from_slice(image);
         self.frame_scalars[slot] = scalars;
+        let vl = self.cfg.vector_len;
+        self.frame_vectors[slot * vl..(slot + 1) * vl].copy_from_slice(vector);
         // The frame that lived in this slot is gone: so is the transition that observed it,
         // wherever it sits in the FIFO (streams interleave, so not necessarily at the front).
         let observer = std::mem::take(&mut self.observed_by[slot]);
@@ -492,6 +508,12 @@ impl Replay {
         (&self.frames[slot * fb..(slot + 1) * fb], self.frame_scalars[slot])
     }
 
+    /// The vector sensor reading stored with frame `id`.
+    fn vector_of(&self, id: u64) -> &[f32] {
+        let (slot, vl) = (self.slot(id), self.cfg.vector_len);
+        &self.frame_vectors[slot * vl..(slot + 1) * vl]
+    }
+
     /// Whether frame `id` is still in the ring (its slot has not been reused): the generation
     /// check every sampled frame passes.
     fn holds_frame(&self, id: u64) -> bool {
@@ -564,6 +586,8 @@ impl Replay {
             }
             out.scalars.push(self.frame(t.obs).1);
             out.next_scalars.push(self.frame(t.next).1);
+            out.vectors.extend_from_slice(self.vector_of(t.obs));
+            out.next_vectors.extend_from_slice(self.vector_of(t.next));
             out.actions.push(t.action);
             out.rewards.push(t.reward);
             out.discounts.push(t.discount);
@@ -600,6 +624,7 @@ mod tests {
 
     fn cfg(capacity: usize) -> ReplayConfig {
         ReplayConfig {
+            vector_len: 0,
             capacity,
             max_bytes: 1 << 30,
             frame_bytes: 4,
@@ -626,6 +651,7 @@ mod tests {
                     speed: t as f32,
                     d: 0.0,
                     path: [0.0; PATH_FEATURES],
+                    vector: Default::default(),
                     action: t % 3,
                     reward: t as f32,
                     terminated: terminal && t == len,
@@ -702,6 +728,7 @@ mod tests {
                 speed: 0.0,
                 d: 0.0,
                 path: [0.0; PATH_FEATURES],
+                vector: Default::default(),
                 action: 0,
                 reward: 0.0,
                 terminated: false,
@@ -733,7 +760,7 @@ mod tests {
     fn interleaved_streams_at_the_byte_cap_never_sample_an_overwritten_frame() {
         for prioritized in [false, true] {
             // 24 frame slots of 4 bytes: the byte cap, not the capacity, binds.
-            let per_frame = frame_cost(4);
+            let per_frame = frame_cost(4, 0);
             let cfg = ReplayConfig { frame_bytes: 4, max_bytes: 24 * per_frame + 1000 * TRANSITION_BYTES, prioritized, ..cfg(1000) };
             let mut r = Replay::new(cfg);
             assert_eq!(r.frame_slots, 24);
@@ -773,6 +800,7 @@ mod tests {
                         speed: 0.0,
                         d: 0.0,
                         path: [0.0; PATH_FEATURES],
+                        vector: Default::default(),
                         action: 0,
                         reward: 0.0,
                         terminated: false,
@@ -840,6 +868,7 @@ mod tests {
             speed: t as f32,
             d: env as f32,
             path: [0.0; PATH_FEATURES],
+            vector: Default::default(),
             action: t % 3,
             reward: 1.0,
             terminated: end == Some(true),
@@ -1034,7 +1063,7 @@ mod tests {
     fn stack_1_samples_exactly_what_the_replay_without_stacks_sampled() {
         let mut got = Vec::new();
         for (n_step, prioritized) in [(1, false), (3, true)] {
-            let cfg = ReplayConfig { max_bytes: 40 * frame_cost(4) + 200 * TRANSITION_BYTES, n_step, prioritized, ..cfg(200) };
+            let cfg = ReplayConfig { max_bytes: 40 * frame_cost(4, 0) + 200 * TRANSITION_BYTES, n_step, prioritized, ..cfg(200) };
             let mut r = Replay::new(cfg);
             let mut rng = ChaCha8Rng::seed_from_u64(11);
             let mut t = [0u32; 3];
@@ -1057,6 +1086,7 @@ mod tests {
                             speed: tt as f32,
                             d: stream as f32,
                             path: [0.0; PATH_FEATURES],
+                            vector: Default::default(),
                             action: tt % 3,
                             reward: tt as f32 * 0.25,
                             terminated: tt == 9,

@@ -17,16 +17,24 @@ use crate::storage::checkpoint;
 use crate::storage::replay::Sample;
 use crate::training::dqn::{Batch, Dqn};
 use agent::config::RunConfig;
-use agent::features::{RawScalars, scalar_features};
+use agent::features::{RawScalars, push_network_inputs};
 use agent::weights;
 
-/// Turns sampled transitions into an update's batch (the frames are used as they are).
+/// Turns sampled transitions into an update's batch (the frames are used as they are; the
+/// network's other inputs come from each frame's raw scalars or vector reading).
 #[must_use]
 pub fn make_batch(cfg: &RunConfig, s: Sample) -> Batch {
-    let scalars = |sc: &[RawScalars]| -> Vec<f32> { sc.iter().flat_map(|x| scalar_features(cfg, x)).collect() };
+    let n = cfg.vector_len();
+    let inputs = |sc: &[RawScalars], vectors: &[f32]| -> Vec<f32> {
+        let mut out = Vec::with_capacity(sc.len() * cfg.scalar_inputs());
+        for (k, raw) in sc.iter().enumerate() {
+            push_network_inputs(cfg, raw, &vectors[k * n..(k + 1) * n], &mut out);
+        }
+        out
+    };
     Batch {
-        scalars: scalars(&s.scalars),
-        next_scalars: scalars(&s.next_scalars),
+        scalars: inputs(&s.scalars, &s.vectors),
+        next_scalars: inputs(&s.next_scalars, &s.next_vectors),
         images: s.images,
         next_images: s.next_images,
         actions: s.actions,

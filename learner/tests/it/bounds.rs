@@ -20,7 +20,7 @@ async fn impossible_speed_distance_and_reward_are_refused_with_the_bound() {
     let frame = running.shared.frame_bytes;
     let step = |t: u32, speed: f32, d: f32, reward: f32| pb::Step {
         t,
-        obs: Some(pb::Observation { image: vec![7; frame], speed, d, path: Vec::new() }),
+        obs: Some(pb::Observation { image: vec![7; frame], speed, d, path: Vec::new(), vector: Vec::new() }),
         action: 1,
         reward,
         ..Default::default()

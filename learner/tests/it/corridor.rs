@@ -154,6 +154,7 @@ fn train(o: Options, env_steps: u32) -> (Dqn, Report) {
     let cfg = agent_config(o);
     let mut dqn = fresh_agent(o);
     let mut replay = Replay::new(ReplayConfig {
+        vector_len: 0,
         capacity: 4096,
         max_bytes: 1 << 22,
         frame_bytes: FRAME_BYTES,
@@ -179,6 +180,7 @@ fn train(o: Options, env_steps: u32) -> (Dqn, Report) {
             speed: 0.0,
             d: 0.0,
             path: [0.0; sim_core::env::PATH_FEATURES],
+            vector: Default::default(),
             action: 0,
             reward: 0.0,
             terminated: false,
@@ -200,6 +202,7 @@ fn train(o: Options, env_steps: u32) -> (Dqn, Report) {
             speed: 0.0,
             d: 0.0,
             path: [0.0; sim_core::env::PATH_FEATURES],
+            vector: Default::default(),
             action,
             reward,
             terminated,

@@ -23,7 +23,7 @@ async fn metrics_are_served_in_the_prometheus_text_format() {
         .await
         .unwrap();
     let mut c = proto::client::connect(&running.addr.to_string(), None).await.unwrap();
-    c.register(proto::v1::RegisterRequest { name: "fake".into(), envs: 1, protocol: 1 }).await.unwrap();
+    c.register(proto::v1::RegisterRequest { name: "fake".into(), envs: 1, protocol: 1, ..Default::default() }).await.unwrap();
 
     let addr = std::fs::read_to_string(dir.path().join("run/metrics.addr")).unwrap();
     let answer = get(addr.trim(), "/metrics").await;

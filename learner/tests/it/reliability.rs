@@ -28,7 +28,7 @@ async fn client(addr: &str) -> LearnerClient<Channel> {
 }
 
 async fn register(c: &mut LearnerClient<Channel>, name: &str, envs: u32) -> pb::RegisterResponse {
-    c.register(pb::RegisterRequest { name: name.into(), envs, protocol: 1 }).await.unwrap().into_inner()
+    c.register(pb::RegisterRequest { name: name.into(), envs, protocol: 1, ..Default::default() }).await.unwrap().into_inner()
 }
 
 async fn status(c: &mut LearnerClient<Channel>) -> pb::StatusResponse {
@@ -40,7 +40,7 @@ fn step(env: u32, episode: u64, t: u32) -> pb::Step {
         env,
         episode,
         t,
-        obs: Some(pb::Observation { image: vec![(t % 251) as u8; 256], speed: 1.0, d: 0.5, path: Vec::new() }),
+        obs: Some(pb::Observation { image: vec![(t % 251) as u8; 256], speed: 1.0, d: 0.5, path: Vec::new(), vector: Vec::new() }),
         action: t % 6,
         reward: 0.1,
         terminated: false,

@@ -24,7 +24,7 @@ async fn client(r: &Running) -> LearnerClient<Channel> {
 }
 
 async fn register(c: &mut LearnerClient<Channel>, name: &str) -> pb::RegisterResponse {
-    c.register(pb::RegisterRequest { name: name.into(), envs: 2, protocol: 1 }).await.unwrap().into_inner()
+    c.register(pb::RegisterRequest { name: name.into(), envs: 2, protocol: 1, ..Default::default() }).await.unwrap().into_inner()
 }
 
 /// `n` steps of one episode of env 0 starting at `t0` (t = 0 is the reset observation).
@@ -34,7 +34,13 @@ fn steps(episode: u64, t0: u32, n: u32, image_bytes: usize) -> Vec<pb::Step> {
             env: 0,
             episode,
             t,
-            obs: Some(pb::Observation { image: vec![(t * 7 % 256) as u8; image_bytes], speed: t as f32 * 0.5, d: 1.0, path: Vec::new() }),
+            obs: Some(pb::Observation {
+                image: vec![(t * 7 % 256) as u8; image_bytes],
+                speed: t as f32 * 0.5,
+                d: 1.0,
+                path: Vec::new(),
+                vector: Vec::new(),
+            }),
             action: t % 6,
             reward: 0.1,
             terminated: false,

@@ -102,3 +102,14 @@ impl VectorConfig {
         format!("{LAYOUT_VERSION} {}", parts.join(" "))
     }
 }
+
+/// The reading an end-to-end agent sees from a hybrid environment's `reading` (same
+/// configuration): the hybrid layout without the planner's segments (path and waypoints). Used
+/// where an end-to-end agent drives an environment that runs the hybrid variant (evaluation
+/// scores every agent in the same world).
+#[must_use]
+pub fn without_planner(cfg: &VectorConfig, reading: &[f32]) -> Vec<f32> {
+    let planner = PATH_FIELDS + 2 * cfg.waypoints as usize;
+    debug_assert_eq!(reading.len(), cfg.len(Variant::Hybrid), "a hybrid reading");
+    reading[..EGO_FIELDS].iter().chain(&reading[EGO_FIELDS + planner..]).copied().collect()
+}

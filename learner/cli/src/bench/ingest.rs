@@ -88,7 +88,10 @@ pub async fn ingest_one(seconds: f64, durability: Durability, tls: bool) -> Resu
     let running = start(ServeOptions { config: Some(cfg_path.clone()), ..ServeOptions::default() }).await?;
     let target = proto::client::Target::new(&running.addr.to_string(), target, false)?;
     let mut client = proto::client::connect_to(&target, None).await?;
-    let reg = client.register(pb::RegisterRequest { name: "bench".into(), envs: 1, protocol: proto::v1::PROTOCOL }).await?.into_inner();
+    let reg = client
+        .register(pb::RegisterRequest { name: "bench".into(), envs: 1, protocol: proto::v1::PROTOCOL, ..Default::default() })
+        .await?
+        .into_inner();
     let mut actor = SyntheticActor::new(reg.actor_id.clone());
     // Keep a window of batches in flight: a pipelined stream, as actors send.
     let (tx, rx) = tokio::sync::mpsc::channel::<pb::ExperienceBatch>(8);

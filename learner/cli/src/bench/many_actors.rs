@@ -66,7 +66,7 @@ async fn one_run(actors: usize, seconds: f64, durability: Durability, limit: u64
             tokio::spawn(async move {
                 let mut client = proto::client::connect_to(&target, None).await?;
                 let reg = client
-                    .register(pb::RegisterRequest { name: format!("bench-{k}"), envs: 1, protocol: pb::PROTOCOL })
+                    .register(pb::RegisterRequest { name: format!("bench-{k}"), envs: 1, protocol: pb::PROTOCOL, ..Default::default() })
                     .await?
                     .into_inner();
                 registered.wait().await;

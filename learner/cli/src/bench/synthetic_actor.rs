@@ -31,7 +31,7 @@ impl SyntheticActor {
                     env: 0,
                     episode: self.episode,
                     t: self.t,
-                    obs: Some(pb::Observation { image: self.frame.clone(), speed: 1.0, d: 0.5, path: Vec::new() }),
+                    obs: Some(pb::Observation { image: self.frame.clone(), speed: 1.0, d: 0.5, path: Vec::new(), vector: Vec::new() }),
                     action: 1,
                     reward: 0.1,
                     terminated: false,

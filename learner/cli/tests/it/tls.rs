@@ -57,7 +57,7 @@ async fn act(r: &Running, t: &Target) {
     let steps = (0..3)
         .map(|t| pb::Step {
             t,
-            obs: Some(pb::Observation { image: vec![9; r.shared.frame_bytes], speed: 1.0, d: 0.5, path: Vec::new() }),
+            obs: Some(pb::Observation { image: vec![9; r.shared.frame_bytes], speed: 1.0, d: 0.5, path: Vec::new(), vector: Vec::new() }),
             action: 1,
             reward: 0.1,
             ..Default::default()

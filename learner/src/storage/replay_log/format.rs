@@ -1,13 +1,16 @@
 //! The replay log's bytes: a segment header, then records, each a header (magic, payload length,
 //! position, payload CRC-32, header CRC-32) and a payload (the actor, the episodes it finished, and
-//! its steps with their frames, each frame once). Little-endian throughout. A record is valid
+//! its steps with their frames, each frame once, and vector sensor readings). Little-endian throughout. A record is valid
 //! only if both checksums match, so a write torn by a crash is recognised and cut off.
+
+use std::borrow::Cow;
 
 use sim_core::env::PATH_FEATURES;
 
 use crate::storage::replay::StepRecord;
 
-/// First bytes of a segment file, then the frame size (u32) and 4 reserved bytes.
+/// First bytes of a segment file, then the frame size (u32) and the vector sensor reading's
+/// length (u32; 0 in segments written before the sensor, whose steps carry none).
 pub const SEGMENT_MAGIC: &[u8; 8] = b"HDRLOG01";
 pub const SEGMENT_HEADER: usize = 16;
 /// First bytes of a record.
@@ -15,6 +18,36 @@ const RECORD_MAGIC: u32 = u32::from_le_bytes(*b"HDRR");
 pub const RECORD_HEADER: usize = 24;
 /// Bytes of a step besides its frame.
 const STEP_FIXED: usize = 4 + 8 + 4 + 4 + 4 + 4 + 4 + 4 * PATH_FEATURES + 1;
+
+/// What every step of a segment carries besides its fixed fields: a frame of `frame_bytes`
+/// bytes and a vector sensor reading of `vector_len` values (either may be 0).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct StepShape {
+    pub frame_bytes: usize,
+    pub vector_len: usize,
+}
+
+impl StepShape {
+    /// Steps with a frame of `frame_bytes` and no vector reading.
+    #[must_use]
+    pub fn frames(frame_bytes: usize) -> Self {
+        Self { frame_bytes, vector_len: 0 }
+    }
+
+    fn variable_bytes(self) -> usize {
+        self.frame_bytes + 4 * self.vector_len
+    }
+}
+
+impl std::fmt::Display for StepShape {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "frames of {} bytes", self.frame_bytes)?;
+        if self.vector_len > 0 {
+            write!(f, " and vector readings of {} values", self.vector_len)?;
+        }
+        Ok(())
+    }
+}
 
 /// One logged batch, borrowing from the bytes it was read from.
 #[derive(Debug, Clone, PartialEq)]
@@ -25,21 +58,23 @@ pub struct Record<'a> {
     pub steps: Vec<StepRecord<'a>>,
 }
 
-/// The segment header for frames of `frame_bytes`.
+/// The segment header for steps of `shape`.
 #[must_use]
-pub fn segment_header(frame_bytes: usize) -> [u8; SEGMENT_HEADER] {
+pub fn segment_header(shape: StepShape) -> [u8; SEGMENT_HEADER] {
     let mut h = [0u8; SEGMENT_HEADER];
     h[..8].copy_from_slice(SEGMENT_MAGIC);
-    h[8..12].copy_from_slice(&(frame_bytes as u32).to_le_bytes());
+    h[8..12].copy_from_slice(&(shape.frame_bytes as u32).to_le_bytes());
+    h[12..16].copy_from_slice(&(shape.vector_len as u32).to_le_bytes());
     h
 }
 
-/// The frame size a segment header states, or why it is not a segment header.
-pub fn read_segment_header(bytes: &[u8]) -> Result<usize, String> {
+/// The step shape a segment header states, or why it is not a segment header.
+pub fn read_segment_header(bytes: &[u8]) -> Result<StepShape, String> {
     if bytes.len() < SEGMENT_HEADER || &bytes[..8] != SEGMENT_MAGIC {
         return Err("not a replay log segment (bad header)".into());
     }
-    Ok(u32::from_le_bytes(bytes[8..12].try_into().expect("4 bytes")) as usize)
+    let word = |i: usize| u32::from_le_bytes(bytes[i..i + 4].try_into().expect("4 bytes")) as usize;
+    Ok(StepShape { frame_bytes: word(8), vector_len: word(12) })
 }
 
 /// A batch's payload.
@@ -62,18 +97,21 @@ pub fn encode(actor: &str, episodes: u32, steps: &[StepRecord<'_>]) -> Vec<u8> {
         }
         out.push(u8::from(s.terminated) | (u8::from(s.truncated) << 1));
         out.extend_from_slice(s.image);
+        for x in s.vector.iter() {
+            out.extend_from_slice(&x.to_le_bytes());
+        }
     }
     out
 }
 
-/// Reads a payload back; every step's frame has `frame_bytes` bytes.
-pub fn decode(payload: &[u8], frame_bytes: usize) -> Result<Record<'_>, String> {
+/// Reads a payload back; every step has the frame and vector reading of `shape`.
+pub fn decode(payload: &[u8], shape: StepShape) -> Result<Record<'_>, String> {
     let mut r = Reader { bytes: payload, at: 0 };
     let name_len = usize::from(u16::from_le_bytes(r.take(2)?.try_into().expect("2 bytes")));
     let actor = std::str::from_utf8(r.take(name_len)?).map_err(|_| "actor id is not UTF-8".to_owned())?;
     let episodes = r.u32()?;
     let n = r.u32()? as usize;
-    if n.saturating_mul(STEP_FIXED + frame_bytes) > payload.len() {
+    if n.saturating_mul(STEP_FIXED + shape.variable_bytes()) > payload.len() {
         return Err(format!("{n} steps do not fit a payload of {} bytes", payload.len()));
     }
     let mut steps = Vec::with_capacity(n);
@@ -88,7 +126,8 @@ pub fn decode(payload: &[u8], frame_bytes: usize) -> Result<Record<'_>, String> 
             *p = r.f32()?;
         }
         let flags = r.take(1)?[0];
-        let image = r.take(frame_bytes)?;
+        let image = r.take(shape.frame_bytes)?;
+        let vector = r.take(4 * shape.vector_len)?.chunks_exact(4).map(|b| f32::from_le_bytes(b.try_into().expect("4 bytes"))).collect();
         steps.push(StepRecord {
             env,
             episode,
@@ -97,6 +136,7 @@ pub fn decode(payload: &[u8], frame_bytes: usize) -> Result<Record<'_>, String> 
             speed,
             d,
             path,
+            vector: Cow::Owned(vector),
             action,
             reward,
             terminated: flags & 1 != 0,
@@ -190,6 +230,7 @@ mod tests {
             speed: 1.5,
             d: -0.25,
             path: [0.1, -0.2, 0.3],
+            vector: Cow::Borrowed(&[]),
             action: 5,
             reward: -1.0,
             terminated: t == 2,
@@ -198,15 +239,31 @@ mod tests {
     }
 
     #[test]
+    fn vector_readings_round_trip_and_a_segment_states_their_length() {
+        let readings = [[0.5f32, -1.0, 0.25], [1.0, 0.0, -0.125]];
+        let steps: Vec<StepRecord<'_>> =
+            readings.iter().enumerate().map(|(t, v)| StepRecord { vector: Cow::Borrowed(v), ..step(t as u32, &[]) }).collect();
+        let shape = StepShape { frame_bytes: 0, vector_len: 3 };
+        let payload = encode("a", 0, &steps);
+        assert_eq!(decode(&payload, shape).unwrap().steps, steps);
+        assert!(decode(&payload, StepShape { vector_len: 2, ..shape }).is_err(), "another length does not parse");
+        assert_eq!(read_segment_header(&segment_header(shape)), Ok(shape));
+        // A segment written before the sensor states 0 (its reserved bytes were zero).
+        let mut old = segment_header(StepShape::frames(8));
+        old[12..16].fill(0);
+        assert_eq!(read_segment_header(&old), Ok(StepShape::frames(8)));
+    }
+
+    #[test]
     fn a_batch_round_trips_and_damage_is_recognised() {
         let imgs = [[1u8; 8], [2u8; 8], [3u8; 8]];
         let steps: Vec<StepRecord<'_>> = imgs.iter().enumerate().map(|(t, i)| step(t as u32, i)).collect();
         let payload = encode("run-1-a0-0", 2, &steps);
-        let back = decode(&payload, 8).unwrap();
+        let back = decode(&payload, StepShape::frames(8)).unwrap();
         assert_eq!(back, Record { actor: "run-1-a0-0", episodes: 2, steps: steps.clone() });
-        assert!(decode(&payload, 7).is_err(), "another frame size does not parse");
+        assert!(decode(&payload, StepShape::frames(7)).is_err(), "another frame size does not parse");
 
-        let mut seg = segment_header(8).to_vec();
+        let mut seg = segment_header(StepShape::frames(8)).to_vec();
         for p in [7u64, 8] {
             seg.extend_from_slice(&record_header(p, &payload));
             seg.extend_from_slice(&payload);
@@ -226,7 +283,7 @@ mod tests {
         bad[full - 3] ^= 4;
         let (recs, end, why) = records(&bad);
         assert_eq!((recs.len(), end, why.as_deref()), (1, first_end, Some("record 8 fails its checksum")));
-        assert_eq!(read_segment_header(&seg), Ok(8));
+        assert_eq!(read_segment_header(&seg), Ok(StepShape::frames(8)));
         assert!(read_segment_header(b"garbage garbage!").is_err());
     }
 }

@@ -26,7 +26,7 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, Condvar, Mutex};
 
-pub use format::Record;
+pub use format::{Record, StepShape};
 
 /// The directory of the log inside the run directory.
 pub const DIR: &str = "replay-log";
@@ -120,7 +120,7 @@ struct Durable {
 #[derive(Debug)]
 struct Inner {
     dir: PathBuf,
-    frame_bytes: usize,
+    shape: StepShape,
     segment_bytes: u64,
     writer: Mutex<Writer>,
     /// Wakes the committer.
@@ -166,7 +166,7 @@ pub struct ReplayLog {
 }
 
 impl ReplayLog {
-    /// Opens (or creates) the log in `run_dir/replay-log/` for frames of `frame_bytes`, calling
+    /// Opens (or creates) the log in `run_dir/replay-log/` for steps of `shape`, calling
     /// `apply(position, record)` for every valid record in order; `apply` returns the replay's
     /// frame count after the record. Torn or corrupt ends of segments are cut off (and logged);
     /// later segments are still read. New batches go to a new segment, at positions above the
@@ -177,7 +177,7 @@ impl ReplayLog {
     /// and what truncating would drop, unless `on_damage` is [`OnDamage::Truncate`].
     pub fn open(
         run_dir: &Path,
-        frame_bytes: usize,
+        shape: StepShape,
         segment_bytes: u64,
         after: u64,
         on_damage: OnDamage,
@@ -209,10 +209,10 @@ impl ReplayLog {
             // Damage: (byte offset where the intact part ends, records from there on, why).
             let mut damage: Option<(usize, u64, String)> = match format::read_segment_header(&bytes) {
                 Err(reason) => Some((0, format::records(&bytes).0.len() as u64, reason)),
-                Ok(frames) if frames != frame_bytes => Some((
+                Ok(theirs) if theirs != shape => Some((
                     0,
                     format::records(&bytes).0.len() as u64,
-                    format!("it holds frames of {frames} bytes; this run's camera makes {frame_bytes}"),
+                    format!("it holds {theirs}; this run's camera and vector sensor make {shape}"),
                 )),
                 Ok(_) => None,
             };
@@ -226,13 +226,13 @@ impl ReplayLog {
                 let bad = if position <= rec.last_position {
                     Some(format!("position {position} follows {}: the log is out of order", rec.last_position))
                 } else {
-                    format::decode(payload, frame_bytes).err().map(|reason| format!("record {position}: {reason}"))
+                    format::decode(payload, shape).err().map(|reason| format!("record {position}: {reason}"))
                 };
                 if let Some(reason) = bad {
                     damage = Some((offset, total - i as u64, reason));
                     break;
                 }
-                let record = format::decode(payload, frame_bytes).expect("decoded above");
+                let record = format::decode(payload, shape).expect("decoded above");
                 frame_end = apply(position, &record);
                 rec.last_position = position;
                 rec.records += 1;
@@ -282,13 +282,13 @@ impl ReplayLog {
             File::open(&last.path).and_then(|f| f.sync_all()).map_err(io(&last.path, "syncing"))?;
         }
         let next_position = rec.last_position.max(after) + 1;
-        let (file, seg) = create_segment(&dir, next_position, frame_bytes, frame_end)?;
+        let (file, seg) = create_segment(&dir, next_position, shape, frame_end)?;
         segments.push_back(seg);
         sync_dir(&dir)?;
         let durable = Durable { position: next_position - 1, failed: None };
         let inner = Arc::new(Inner {
             dir,
-            frame_bytes,
+            shape,
             segment_bytes,
             writer: Mutex::new(Writer {
                 file: Arc::new(file),
@@ -328,7 +328,7 @@ impl ReplayLog {
         let current = w.segments.back().expect("a current segment");
         if current.bytes > format::SEGMENT_HEADER as u64 && current.bytes + len > inner.segment_bytes {
             let frame_end = current.frame_end;
-            let (file, seg) = create_segment(&inner.dir, w.next_position, inner.frame_bytes, frame_end)?;
+            let (file, seg) = create_segment(&inner.dir, w.next_position, inner.shape, frame_end)?;
             let old = std::mem::replace(&mut w.file, Arc::new(file));
             w.to_sync.push(old);
             w.segments.push_back(seg);
@@ -496,7 +496,7 @@ pub struct Entry {
 /// Reads the log of `run_dir` without changing it (no learner may be writing it): every valid
 /// batch in order, and the first position of the oldest segment (0 if there is none). Torn or
 /// corrupt ends are skipped, as [`ReplayLog::open`] would cut them.
-pub fn inventory(run_dir: &Path, frame_bytes: usize) -> Result<(Vec<Entry>, u64), LogError> {
+pub fn inventory(run_dir: &Path, shape: StepShape) -> Result<(Vec<Entry>, u64), LogError> {
     let dir = run_dir.join(DIR);
     let mut names: Vec<(u64, PathBuf)> = fs::read_dir(&dir)
         .map_err(io(&dir, "listing"))?
@@ -516,17 +516,17 @@ pub fn inventory(run_dir: &Path, frame_bytes: usize) -> Result<(Vec<Entry>, u64)
             first = start;
         }
         for (position, payload) in records {
-            let r = format::decode(payload, frame_bytes).map_err(|reason| LogError::Corrupt { path: path.clone(), reason })?;
+            let r = format::decode(payload, shape).map_err(|reason| LogError::Corrupt { path: path.clone(), reason })?;
             out.push(Entry { position, actor: r.actor.to_owned(), steps: r.steps.len() });
         }
     }
     Ok((out, first))
 }
 
-fn create_segment(dir: &Path, first: u64, frame_bytes: usize, frame_end: u64) -> Result<(File, Segment), LogError> {
+fn create_segment(dir: &Path, first: u64, shape: StepShape, frame_end: u64) -> Result<(File, Segment), LogError> {
     let path = dir.join(format!("{first:020}.seg"));
     let mut f = fs::OpenOptions::new().create(true).truncate(true).write(true).open(&path).map_err(io(&path, "creating"))?;
-    f.write_all(&format::segment_header(frame_bytes)).map_err(io(&path, "writing"))?;
+    f.write_all(&format::segment_header(shape)).map_err(io(&path, "writing"))?;
     Ok((f, Segment { path, first, bytes: format::SEGMENT_HEADER as u64, frame_end }))
 }
 
@@ -562,6 +562,7 @@ mod tests {
                 speed: 0.0,
                 d: 0.0,
                 path: [0.0; PATH_FEATURES],
+                vector: Default::default(),
                 action: 1,
                 reward: 0.5,
                 terminated: false,
@@ -574,7 +575,7 @@ mod tests {
     /// Reads a log back: (position, actor, first t, steps) of every record.
     fn read_back(dir: &Path) -> (Vec<(u64, String, u32, usize)>, Recovered) {
         let mut seen = Vec::new();
-        let (log, rec) = ReplayLog::open(dir, 16, 1 << 16, 0, OnDamage::Refuse, |p, r| {
+        let (log, rec) = ReplayLog::open(dir, StepShape::frames(16), 1 << 16, 0, OnDamage::Refuse, |p, r| {
             seen.push((p, r.actor.to_owned(), r.steps[0].t, r.steps.len()));
             p * 100
         })
@@ -586,7 +587,8 @@ mod tests {
     #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
     async fn appended_batches_are_durable_when_acknowledged_and_read_back_in_order() {
         let dir = tempfile::tempdir().unwrap();
-        let (log, rec) = ReplayLog::open(dir.path(), 16, 1 << 16, 0, OnDamage::Refuse, |_, _| unreachable!("empty")).unwrap();
+        let (log, rec) =
+            ReplayLog::open(dir.path(), StepShape::frames(16), 1 << 16, 0, OnDamage::Refuse, |_, _| unreachable!("empty")).unwrap();
         assert_eq!(rec, Recovered::default());
         // 200 batches of 20 steps (~1.3 KB each) over several 64 KiB segments, from concurrent
         // tasks as actors send; each waits for its own position (group commit).
@@ -622,7 +624,7 @@ mod tests {
             assert_eq!(ts, (0..50).map(|b| b * 20).collect::<Vec<_>>(), "actor a{a}'s batches in order");
         }
         // Reopened, positions continue after the last one.
-        let (log, _) = ReplayLog::open(dir.path(), 16, 1 << 16, 0, OnDamage::Refuse, |p, _| p).unwrap();
+        let (log, _) = ReplayLog::open(dir.path(), StepShape::frames(16), 1 << 16, 0, OnDamage::Refuse, |p, _| p).unwrap();
         assert_eq!(log.append(&payload("z", 0, 1).0).unwrap(), 201);
     }
 
@@ -630,7 +632,7 @@ mod tests {
     fn a_torn_tail_is_cut_off_and_later_batches_still_land() {
         let dir = tempfile::tempdir().unwrap();
         {
-            let (log, _) = ReplayLog::open(dir.path(), 16, 1 << 20, 0, OnDamage::Refuse, |_, _| 0).unwrap();
+            let (log, _) = ReplayLog::open(dir.path(), StepShape::frames(16), 1 << 20, 0, OnDamage::Refuse, |_, _| 0).unwrap();
             for b in 0..3 {
                 let p = log.append(&payload("a", b * 5, 5).0).unwrap();
                 log.wait_durable(p).unwrap();
@@ -647,7 +649,7 @@ mod tests {
         assert_eq!(seen.len(), 3);
         assert!(rec.cut_bytes > 0);
         // Cut for good: the next opening finds nothing to cut, and new batches follow.
-        let (log, rec) = ReplayLog::open(dir.path(), 16, 1 << 20, 0, OnDamage::Refuse, |_, _| 0).unwrap();
+        let (log, rec) = ReplayLog::open(dir.path(), StepShape::frames(16), 1 << 20, 0, OnDamage::Refuse, |_, _| 0).unwrap();
         assert_eq!((rec.records, rec.cut_bytes), (3, 0));
         let p = log.append(&payload("b", 0, 2).0).unwrap();
         log.wait_durable(p).unwrap();
@@ -659,7 +661,7 @@ mod tests {
     #[test]
     fn segments_whose_frames_left_the_replay_are_deleted() {
         let dir = tempfile::tempdir().unwrap();
-        let (log, _) = ReplayLog::open(dir.path(), 16, 64 << 10, 0, OnDamage::Refuse, |_, _| 0).unwrap();
+        let (log, _) = ReplayLog::open(dir.path(), StepShape::frames(16), 64 << 10, 0, OnDamage::Refuse, |_, _| 0).unwrap();
         // Each batch adds 40 frames; the replay (say) keeps the newest 400.
         let mut frames = 0u64;
         for b in 0..200 {
