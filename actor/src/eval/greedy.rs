@@ -8,7 +8,6 @@ use std::path::{Path, PathBuf};
 use agent::checkpoint::{self, CONFIG, Progress, STATE};
 use agent::config::RunConfig;
 use agent::fastnet::Inference;
-use agent::features::{env_scalars, scalar_features};
 use anyhow::{Context, Result};
 use serde::Serialize;
 use sim_core::env::Env;

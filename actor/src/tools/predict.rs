@@ -2,11 +2,12 @@
 //! inputs — so that a checkpoint loaded elsewhere (PyTorch, NumPy: docs/MODEL.md) can be checked
 //! against this program. The observation comes from the simulator (`--route NAME --step K`: the
 //! route driven K steps by the model-based reference driver, which does not depend on the
-//! checkpoint) or from the user (`--frame FILE.png --speed V --d D`).
+//! checkpoint) or from the user (`--frame FILE.png --speed V --d D`, or `--vector FILE.json` for a
+//! checkpoint that sees the vector sensor).
 
 use std::path::{Path, PathBuf};
 
-use agent::features::{RawScalars, raw_scalars, scalar_features};
+use agent::features::{RawScalars, push_network_inputs, raw_scalars};
 use anyhow::{Context, Result, bail};
 use clap::Args;
 use serde_json::json;
@@ -18,7 +19,7 @@ use sim_core::scenario::{EvalRoute, Scenario};
 use crate::eval::greedy::{GreedyAgent, load_checkpoint, q_values};
 
 #[derive(Debug, Args)]
-#[command(group = clap::ArgGroup::new("observation").required(true).args(["route", "frame"]))]
+#[command(group = clap::ArgGroup::new("observation").required(true).args(["route", "frame", "vector"]))]
 pub struct PredictArgs {
     /// A checkpoint: a run directory, its checkpoint/ directory, or the online.safetensors in it.
     #[arg(long)]
@@ -46,6 +47,15 @@ pub struct PredictArgs {
     /// With --frame: d, the distance to the closest waypoint, m (hybrid checkpoints).
     #[arg(long, value_name = "METRES")]
     pub d: Option<f32>,
+    /// With --route: also write the vector sensor's reading used, as a JSON array (input for
+    /// --vector elsewhere; checkpoints with `[env.vector]`).
+    #[arg(long, value_name = "FILE.json")]
+    pub save_vector: Option<PathBuf>,
+    /// Observe this vector sensor reading instead (checkpoints with `[env.vector]` and no
+    /// camera): a JSON array of the checkpoint's `VectorConfig::len` numbers in [-1, 1], in the
+    /// layout of docs/MODEL.md.
+    #[arg(long, value_name = "FILE.json", conflicts_with_all = ["route", "frame", "save_frame", "save_vector"])]
+    pub vector: Option<PathBuf>,
     /// With --frame: the path features (checkpoints with agent.path_features): signed lateral
     /// offset (m), near and far heading angles to the route (rad), comma-separated.
     #[arg(long, value_name = "LAT,NEAR,FAR", value_delimiter = ',', allow_hyphen_values = true)]
@@ -55,21 +65,24 @@ pub struct PredictArgs {
     pub json: bool,
 }
 
-/// An observation: the image as the camera renders it (`H × W × C` bytes) and the raw scalars.
+/// An observation: the image as the camera renders it (`H × W × C` bytes), the raw scalars and
+/// the vector sensor's reading (empty without the sensor).
 struct Observed {
     image: Vec<u8>,
     raw: RawScalars,
+    vector: Vec<f32>,
     source: serde_json::Value,
 }
 
 pub fn run(args: &PredictArgs) -> Result<()> {
     let mut agent = load_checkpoint(&args.checkpoint)?;
     let obs = match (&args.route, &args.frame) {
-        (Some(route), _) => observe_route(&agent, route, args.step.unwrap_or(0), args.seed, args.save_frame.as_deref())?,
+        (Some(route), _) => observe_route(&agent, route, args.step.unwrap_or(0), args.seed, args)?,
         (None, Some(frame)) => observe_frame(&agent, frame, args)?,
-        (None, None) => unreachable!("clap requires --route or --frame"),
+        (None, None) => observe_vector(&agent, args.vector.as_deref().expect("clap requires --route, --frame or --vector"))?,
     };
-    let features = scalar_features(&agent.cfg, &obs.raw);
+    let mut features = Vec::new();
+    push_network_inputs(&agent.cfg, &obs.raw, &obs.vector, &mut features);
     let q = q_values(&mut agent, &obs.image, &features);
     let greedy = agent::fastnet::argmax(&q);
     let shape = agent.cfg.net_shape();
@@ -91,6 +104,7 @@ pub fn run(args: &PredictArgs) -> Result<()> {
                 "speed_mps": obs.raw[0], "d_m": obs.raw[1],
                 "lateral_m": obs.raw[2], "near_heading_rad": obs.raw[3], "far_heading_rad": obs.raw[4],
             },
+            "vector": agent.cfg.vector_layout().map(|layout| json!({"layout": layout, "values": obs.vector})),
             "scalar_names": scalar_names(&agent),
             "scalars": features,
         },
@@ -115,19 +129,28 @@ pub fn run(args: &PredictArgs) -> Result<()> {
     Ok(())
 }
 
-/// The names of the network's scalar inputs, in order (`agent::features::scalar_features`).
-fn scalar_names(agent: &GreedyAgent) -> Vec<&'static str> {
-    match agent.cfg.env.variant {
-        Variant::Hybrid if agent.cfg.agent.path_features => {
-            vec!["speed/v0", "d/d0", "lateral/lane_width", "near_heading_rad", "far_heading_rad"]
-        }
-        Variant::Hybrid => vec!["speed/v0", "d/d0"],
-        Variant::EndToEnd => vec!["speed/v0"],
+/// The names of the network's inputs besides the image, in order
+/// (`agent::features::push_network_inputs`): the vector sensor's as `SEGMENT[ITEM].FIELD`.
+fn scalar_names(agent: &GreedyAgent) -> Vec<String> {
+    if let Some(v) = &agent.cfg.env.vector {
+        return v
+            .segments(agent.cfg.env.variant)
+            .iter()
+            .flat_map(|s| (0..s.count).flat_map(move |i| (0..s.fields).map(move |f| format!("{}[{i}].{f}", s.name))))
+            .collect();
     }
+    let names: &[&str] = match agent.cfg.env.variant {
+        Variant::Hybrid if agent.cfg.agent.path_features => {
+            &["speed/v0", "d/d0", "lateral/lane_width", "near_heading_rad", "far_heading_rad"]
+        }
+        Variant::Hybrid => &["speed/v0", "d/d0"],
+        Variant::EndToEnd => &["speed/v0"],
+    };
+    names.iter().map(|&n| n.to_owned()).collect()
 }
 
 /// Resets route `name` with `seed`, drives `step` steps with the reference driver and observes.
-fn observe_route(agent: &GreedyAgent, name: &str, step: u32, seed: u64, save: Option<&Path>) -> Result<Observed> {
+fn observe_route(agent: &GreedyAgent, name: &str, step: u32, seed: u64, args: &PredictArgs) -> Result<Observed> {
     let route = EvalRoute::from_name(name).with_context(|| {
         format!("--route `{name}` is not an evaluation route: expected one of {}", EvalRoute::ALL.map(EvalRoute::name).join(", "))
     })?;
@@ -141,13 +164,20 @@ fn observe_route(agent: &GreedyAgent, name: &str, step: u32, seed: u64, save: Op
             bail!("--step {step}: the episode on {name} (seed {seed}) ended after {} steps; choose a step below {}", k + 1, k + 1);
         }
     }
-    if let Some(path) = save {
+    if let Some(path) = &args.save_frame {
+        anyhow::ensure!(agent.cfg.env.camera.is_some(), "--save-frame: the checkpoint has no camera");
         crate::tools::record::write_png(path, env.image())?;
+    }
+    let vector = env.vector().map(<[f32]>::to_vec).unwrap_or_default();
+    if let Some(path) = &args.save_vector {
+        anyhow::ensure!(agent.cfg.env.vector.is_some(), "--save-vector: the checkpoint has no vector sensor ([env.vector])");
+        std::fs::write(path, serde_json::to_string(&vector)?).with_context(|| format!("--save-vector: writing {}", path.display()))?;
     }
     Ok(Observed {
         image: env.stacked_image().data.clone(),
         raw: agent::features::env_scalars(&env),
-        source: json!({"route": name, "step": step, "seed": seed, "frame": save}),
+        vector,
+        source: json!({"route": name, "step": step, "seed": seed, "frame": args.save_frame, "vector": args.save_vector}),
     })
 }
 
@@ -185,7 +215,30 @@ fn observe_frame(agent: &GreedyAgent, path: &Path, args: &PredictArgs) -> Result
     // A checkpoint that sees a stack of frames gets the one frame as a still scene: repeated.
     let mut stacked = Vec::new();
     sim_core::camera::interleave_frames(&vec![image.3.as_slice(); stack], frame_channels, &mut stacked);
-    Ok(Observed { image: stacked, raw: raw_scalars(speed, d, path_features), source: json!({"frame": path, "speed_mps": speed, "d_m": d}) })
+    Ok(Observed {
+        image: stacked,
+        raw: raw_scalars(speed, d, path_features),
+        vector: Vec::new(),
+        source: json!({"frame": path, "speed_mps": speed, "d_m": d}),
+    })
+}
+
+/// Reads a vector sensor reading the user gave (a JSON array), checked against the checkpoint's
+/// layout.
+fn observe_vector(agent: &GreedyAgent, path: &Path) -> Result<Observed> {
+    let cfg = &agent.cfg;
+    let layout = cfg.vector_layout().context("--vector: the checkpoint has no vector sensor ([env.vector]); give --frame or --route")?;
+    anyhow::ensure!(cfg.env.camera.is_none(), "--vector: the checkpoint also sees a camera; observe it with --route");
+    let text = std::fs::read_to_string(path).with_context(|| format!("--vector: reading {}", path.display()))?;
+    let vector: Vec<f32> =
+        serde_json::from_str(&text).with_context(|| format!("--vector: {} is not a JSON array of numbers", path.display()))?;
+    if vector.len() != cfg.vector_len() {
+        bail!("--vector {}: {} values, but the checkpoint's layout `{layout}` has {}", path.display(), vector.len(), cfg.vector_len());
+    }
+    if let Some((k, v)) = vector.iter().enumerate().find(|(_, v)| !(v.abs() <= 1.0)) {
+        bail!("--vector {}: value {k} is {v}; the vector sensor's values lie in [-1, 1]", path.display());
+    }
+    Ok(Observed { image: Vec::new(), raw: RawScalars::default(), vector, source: json!({"vector": path}) })
 }
 
 /// An 8-bit gray or RGB PNG: width, height, channels and the pixels row by row.

@@ -15,6 +15,10 @@ use super::names::{FILES, FORMAT_VERSION, MANIFEST};
 pub struct Manifest {
     pub version: u32,
     pub files: Vec<FileEntry>,
+    /// The vector sensor's layout the network reads (`RunConfig::vector_layout`, e.g.
+    /// `vector/1 ego:1x3 …`), for runs with `[env.vector]`; absent otherwise.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub vector_layout: Option<String>,
 }
 
 /// One file of a manifest.
@@ -38,6 +42,7 @@ struct ManifestVersion {
 pub fn manifest_of<'a>(files: impl IntoIterator<Item = (&'a str, &'a [u8])>) -> Manifest {
     Manifest {
         version: FORMAT_VERSION,
+        vector_layout: None,
         files: files
             .into_iter()
             .map(|(name, bytes)| FileEntry { name: name.into(), bytes: bytes.len() as u64, fnv1a64: format!("{:016x}", fnv1a64(bytes)) })

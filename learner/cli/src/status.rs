@@ -53,6 +53,7 @@ pub fn table(report: &StatusReport) -> String {
         replay_size,
         replay_capacity,
         replay_bytes,
+        replay_bytes_per_transition,
         updates_per_sec,
         env_steps_per_sec,
         held_secs,
@@ -89,7 +90,7 @@ pub fn table(report: &StatusReport) -> String {
     ));
     line(format!("loss {:.4}   mean Q {:.3}   epsilon schedule at the run's step {epsilon:.3}", or_nan(loss), or_nan(mean_q)));
     line(format!(
-        "replay {replay_size}/{replay_capacity} transitions, {:.1} MiB   received {transitions_received}   stored {transitions_stored}   rejected {transitions_rejected} ({batches_rejected} batches)",
+        "replay {replay_size}/{replay_capacity} transitions, {:.1} MiB ({replay_bytes_per_transition:.0} bytes each)   received {transitions_received}   stored {transitions_stored}   rejected {transitions_rejected} ({batches_rejected} batches)",
         mib(*replay_bytes)
     ));
     line(format!(

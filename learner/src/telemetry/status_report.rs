@@ -33,6 +33,9 @@ pub struct StatusReport {
     pub replay_size: u64,
     pub replay_capacity: u64,
     pub replay_bytes: u64,
+    /// Replay bytes per stored transition (frames or vector readings, scalars and bookkeeping);
+    /// 0 while the replay is empty.
+    pub replay_bytes_per_transition: f64,
     pub updates_per_sec: f64,
     pub env_steps_per_sec: f64,
     /// Seconds experience streams waited for the training thread to catch up with the replay
@@ -156,6 +159,7 @@ impl From<pb::StatusResponse> for StatusReport {
             replay_size,
             replay_capacity,
             replay_bytes,
+            replay_bytes_per_transition: if replay_size == 0 { 0.0 } else { replay_bytes as f64 / replay_size as f64 },
             updates_per_sec,
             env_steps_per_sec,
             held_secs,

@@ -59,7 +59,8 @@ pub fn save(run_dir: &Path, dqn: &Dqn, counters: &Counters, config_toml: &str) -
     };
     let state = serde_json::to_vec_pretty(&state).map_err(|e| serialise(STATE, e.to_string()))?;
     let contents: [&[u8]; 5] = [&online, &target, &optimizer, &state, config_toml.as_bytes()];
-    let manifest = manifest_of(FILES.into_iter().zip(contents));
+    let mut manifest = manifest_of(FILES.into_iter().zip(contents));
+    manifest.vector_layout = agent::config::RunConfig::from_toml(config_toml, CONFIG).ok().and_then(|c| c.vector_layout());
     let manifest = serde_json::to_vec_pretty(&manifest).map_err(|e| serialise(MANIFEST, e.to_string()))?;
 
     static SAVES: AtomicU64 = AtomicU64::new(0);
