@@ -4,6 +4,11 @@ a full DQN update at batch 32 (online forward, target forward on the next states
 backward, Adam) and a batch-1 forward, in f32 and in bf16 autocast (oneDNN; AMX where present), on
 2 threads. Prints one JSON object. Usage: torch_peer.py SIZE CHANNELS [--updates N].
 
+With `--vector N` (SIZE and CHANNELS are then ignored, e.g. 0 0) the network is the multilayer
+perceptron of a vector input, as fastnet's shape with no image: N inputs (values in [-1, 1]) →
+Linear(N, HIDDEN) → ReLU → Linear(HIDDEN, HIDDEN) → ReLU → Linear(HIDDEN, ACTIONS), at `--batch`
+(default 256 for it) with `--actions` (default 27) and `--hidden` (256).
+
 Adapted from the workplace's measuring aid (../shared/tools/torch_dqn_peer.py); used by
 scripts/bench-vs-torch.sh to put PyTorch beside fastnet in the same run.
 """
@@ -20,9 +25,15 @@ p.add_argument("size", type=int)
 p.add_argument("channels", type=int)
 p.add_argument("--updates", type=int, default=20)
 p.add_argument("--threads", type=int, default=2)
+p.add_argument("--vector", type=int, default=0, help="the MLP over this many inputs instead")
+p.add_argument("--batch", type=int, default=None)
+p.add_argument("--actions", type=int, default=None)
+p.add_argument("--hidden", type=int, default=256)
 args = p.parse_args()
 torch.set_num_threads(args.threads)
-S, C = args.size, args.channels
+S, C, V, H = args.size, args.channels, args.vector, args.hidden
+B = args.batch or (256 if V else 32)
+A = args.actions or (27 if V else 6)
 
 
 class Net(nn.Module):
@@ -31,10 +42,21 @@ class Net(nn.Module):
         conv = lambda cin: [nn.Conv2d(cin, 64, 3, padding=1), nn.ReLU(), nn.AvgPool2d(2)]
         self.c = nn.Sequential(*conv(C), *conv(64), *conv(64))
         n = 64 * (S // 8) ** 2
-        self.f = nn.Sequential(nn.Linear(n + 2, 256), nn.ReLU(), nn.Linear(256, 256), nn.ReLU(), nn.Linear(256, 6))
+        self.f = nn.Sequential(nn.Linear(n + 2, H), nn.ReLU(), nn.Linear(H, H), nn.ReLU(), nn.Linear(H, A))
 
     def forward(self, x, y):
         return self.f(torch.cat([self.c(x).flatten(1), y], 1))
+
+
+class Mlp(nn.Module):
+    """fastnet's network with no image: fc1, fc2 and q over the vector alone."""
+
+    def __init__(self):
+        super().__init__()
+        self.f = nn.Sequential(nn.Linear(V, H), nn.ReLU(), nn.Linear(H, H), nn.ReLU(), nn.Linear(H, A))
+
+    def forward(self, x, y):
+        return self.f(y)
 
 
 def median_ms(f, n):
@@ -48,18 +70,23 @@ def median_ms(f, n):
     return statistics.median(ts)
 
 
-out = {"input": f"{S}x{S}x{C}", "threads": args.threads, "torch": torch.__version__, "batch": 32}
+name = f"vector:{V}" if V else f"{S}x{S}x{C}"
+out = {"input": name, "threads": args.threads, "torch": torch.__version__, "batch": B, "actions": A, "hidden": H}
 for dt in [None, torch.bfloat16]:
     torch.manual_seed(0)
-    net = Net().to(memory_format=torch.channels_last)
-    tgt = Net().to(memory_format=torch.channels_last)
+    if V:
+        net, tgt = Mlp(), Mlp()
+        x, x1 = torch.empty(B, 0), torch.empty(1, 0)
+        y, y1 = torch.rand(B, V) * 2 - 1, torch.rand(1, V) * 2 - 1
+    else:
+        net = Net().to(memory_format=torch.channels_last)
+        tgt = Net().to(memory_format=torch.channels_last)
+        x = torch.rand(B, C, S, S).to(memory_format=torch.channels_last)
+        x1 = torch.rand(1, C, S, S).to(memory_format=torch.channels_last)
+        y, y1 = torch.rand(B, 2), torch.rand(1, 2)
     opt = torch.optim.Adam(net.parameters(), 1e-4)
-    x = torch.rand(32, C, S, S).to(memory_format=torch.channels_last)
-    y = torch.rand(32, 2)
-    a = torch.randint(0, 6, (32,))
-    r = torch.rand(32)
-    x1 = torch.rand(1, C, S, S).to(memory_format=torch.channels_last)
-    y1 = torch.rand(1, 2)
+    a = torch.randint(0, A, (B,))
+    r = torch.rand(B)
 
     def step():
         with torch.autocast("cpu", dtype=dt, enabled=dt is not None):

@@ -12,7 +12,8 @@ use crate::shape::NetShape;
 #[derive(Debug, Clone)]
 pub struct QNetwork {
     pub shape: NetShape,
-    conv: [Conv2d; 3],
+    /// The three convolutions; none without an image (the multilayer perceptron).
+    conv: Vec<Conv2d>,
     fc1: Linear,
     fc2: Linear,
     q: Linear,
@@ -24,20 +25,29 @@ impl QNetwork {
     pub fn new(vb: &VarBuilder, shape: NetShape) -> Result<Self> {
         let cfg = Conv2dConfig { padding: 1, ..Default::default() };
         let conv = |name: &str, cin: usize| candle_nn::conv2d(cin, shape.filters, 3, cfg, vb.pp(name));
-        let conv = [conv("conv1", shape.channels)?, conv("conv2", shape.filters)?, conv("conv3", shape.filters)?];
+        let conv = if shape.has_image() {
+            vec![conv("conv1", shape.channels)?, conv("conv2", shape.filters)?, conv("conv3", shape.filters)?]
+        } else {
+            Vec::new()
+        };
         let fc1 = candle_nn::linear(shape.flat(), shape.hidden, vb.pp("fc1"))?;
         let fc2 = candle_nn::linear(shape.hidden, shape.hidden, vb.pp("fc2"))?;
         let q = candle_nn::linear(shape.hidden, shape.actions, vb.pp("q"))?;
         Ok(Self { shape, conv, fc1, fc2, q })
     }
 
-    /// Q values `[B, actions]` of images `[B, C, H, W]` (f32 in 0–1) and scalars `[B, S]`.
+    /// Q values `[B, actions]` of images `[B, C, H, W]` (f32 in 0–1) and scalars `[B, S]`;
+    /// without an image, of the scalars alone (`images` is not read).
     pub fn forward(&self, images: &Tensor, scalars: &Tensor) -> Result<Tensor> {
-        let mut x = images.clone();
-        for conv in &self.conv {
-            x = conv.forward(&x)?.relu()?.avg_pool2d(2)?;
-        }
-        let x = Tensor::cat(&[&x.flatten_from(1)?, scalars], 1)?;
+        let x = if self.shape.has_image() {
+            let mut x = images.clone();
+            for conv in &self.conv {
+                x = conv.forward(&x)?.relu()?.avg_pool2d(2)?;
+            }
+            Tensor::cat(&[&x.flatten_from(1)?, scalars], 1)?
+        } else {
+            scalars.clone()
+        };
         let x = self.fc1.forward(&x)?.relu()?;
         let x = self.fc2.forward(&x)?.relu()?;
         self.q.forward(&x)
@@ -84,13 +94,14 @@ pub fn candle_safetensors(vars: &VarMap) -> Result<Vec<u8>> {
         .map_err(|e| candle_core::Error::Msg(format!("serialising weights: {e}")))
 }
 
-/// Images (row-major u8, `H×W×C` each) as an f32 tensor `[B, C, H, W]` scaled to 0–1.
+/// Images (row-major u8, `H×W×C` each) as an f32 tensor `[B, C, H, W]` scaled to 0–1 (with no
+/// elements without an image).
 pub fn images_tensor(images: &[&[u8]], shape: &NetShape, device: &Device) -> Result<Tensor> {
     let (h, w, c) = (shape.height, shape.width, shape.channels);
     let mut data = vec![0f32; images.len() * c * h * w];
     for (b, img) in images.iter().enumerate() {
         let base = b * c * h * w;
-        for (p, px) in img.chunks_exact(c).enumerate() {
+        for (p, px) in img.chunks_exact(c.max(1)).enumerate() {
             for (k, &v) in px.iter().enumerate() {
                 data[base + k * h * w + p] = f32::from(v) / 255.0;
             }
@@ -120,15 +131,33 @@ mod tests {
     }
 
     #[test]
+    fn the_mlp_has_no_convolutions_and_takes_the_scalars_alone() {
+        let dev = Device::Cpu;
+        let shape = NetShape::mlp(2, 8, 3);
+        let vars = var_map(&Params::init(shape, 1)).unwrap();
+        let net = network(&vars, shape, &dev).unwrap();
+        assert!(net.conv.is_empty());
+        let images = images_tensor(&[&[], &[]], &shape, &dev).unwrap();
+        let scalars = Tensor::new(&[[0.5f32, 0.1], [0.0, 0.0]], &dev).unwrap();
+        assert_eq!(net.forward(&images, &scalars).unwrap().dims(), &[2, 3]);
+        let mut names: Vec<String> = vars.data().lock().unwrap().keys().cloned().collect();
+        names.sort();
+        assert_eq!(names, ["fc1.bias", "fc1.weight", "fc2.bias", "fc2.weight", "q.bias", "q.weight"]);
+    }
+
+    #[test]
     fn the_weights_format_is_byte_identical_to_candles() {
+        for shape in [tiny(), NetShape::mlp(37, 16, 5)] {
+            let p = Params::init(shape, 1);
+            let vars = var_map(&p).unwrap();
+            assert_eq!(weights::to_safetensors(&p, "").unwrap(), candle_safetensors(&vars).unwrap());
+            assert_eq!(params_of(shape, &vars).unwrap(), p);
+        }
         let p = Params::init(tiny(), 1);
-        let vars = var_map(&p).unwrap();
-        assert_eq!(weights::to_safetensors(&p, "").unwrap(), candle_safetensors(&vars).unwrap());
-        assert_eq!(params_of(tiny(), &vars).unwrap(), p);
         // And candle reads ours.
         let loaded = candle_core::safetensors::load_buffer(&weights::to_safetensors(&p, "").unwrap(), &Device::Cpu).unwrap();
         let fc1: Vec<f32> = loaded["fc1.weight"].flatten_all().unwrap().to_vec1().unwrap();
-        assert_eq!(fc1, p.values[crate::fastnet::params::FC1_W]);
+        assert_eq!(fc1, p.values[crate::fastnet::params::DenseSlots::of(&p.shape).fc1_w]);
     }
 
     #[test]

@@ -116,6 +116,40 @@ mod tests {
         assert!(matches!(from_safetensors(tiny(), b"garbage", ""), Err(WeightsError::NotSafetensors(_))));
     }
 
+    /// The multilayer perceptron's file holds its six dense tensors under the names PyTorch's
+    /// `nn.Linear` (`F.linear(x, weight, bias)`, weight `[out, in]`) uses for `fc1`, `fc2` and
+    /// `q`, and nothing else; a file of another shape is refused naming the tensor.
+    #[test]
+    fn an_mlp_round_trips_under_its_dense_names_and_is_shape_checked() {
+        let shape = NetShape::mlp(150, 256, 27);
+        let a = Params::init(shape, 4);
+        let bytes = to_safetensors(&a, "").unwrap();
+        assert_eq!(from_safetensors(shape, &bytes, "").unwrap(), a);
+        let file = SafeTensors::deserialize(&bytes).unwrap();
+        let mut names: Vec<(String, Vec<usize>)> = file.tensors().into_iter().map(|(n, t)| (n, t.shape().to_vec())).collect();
+        names.sort();
+        let expected = [
+            ("fc1.bias", vec![256]),
+            ("fc1.weight", vec![256, 150]),
+            ("fc2.bias", vec![256]),
+            ("fc2.weight", vec![256, 256]),
+            ("q.bias", vec![27]),
+            ("q.weight", vec![27, 256]),
+        ]
+        .map(|(n, d)| (n.to_string(), d));
+        assert_eq!(names, expected);
+        let e = from_safetensors(NetShape::mlp(149, 256, 27), &bytes, "").unwrap_err();
+        assert_eq!(e.to_string(), "parameter `fc1.weight` has shape [256, 150], expected [256, 149]");
+        let e = from_safetensors(NetShape::mlp(150, 256, 26), &bytes, "").unwrap_err();
+        assert_eq!(e.to_string(), "parameter `q.bias` has shape [27], expected [26]");
+        // A camera network's file is no MLP's, nor the other way round.
+        let e = from_safetensors(tiny(), &bytes, "").unwrap_err();
+        assert_eq!(e.to_string(), "lacks parameter `conv1.bias`");
+        let camera = to_safetensors(&Params::init(tiny(), 1), "").unwrap();
+        let e = from_safetensors(NetShape::mlp(2, 8, 3), &camera, "").unwrap_err();
+        assert_eq!(e.to_string(), "parameter `fc1.weight` has shape [8, 18], expected [8, 2]");
+    }
+
     #[test]
     fn prefixed_sets_share_a_file() {
         let (m, v) = (Params::init(tiny(), 2), Params::init(tiny(), 3));

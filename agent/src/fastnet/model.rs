@@ -6,6 +6,11 @@
 //! sums (summed at the end, in a fixed order, so that results do not depend on timing). The dense
 //! layers run on the whole batch with `gemm`'s own threads. A single image (an actor's inference)
 //! is split across the threads instead, by bands of lines and of units (`fastnet::thread_split`).
+//!
+//! A shape with no image (`NetShape::has_image`) is the dense layers alone, the multilayer
+//! perceptron over the scalar inputs: no convolution buffer is allocated and no kernel laid out,
+//! the image slices are empty, and the backward pass stops at fc1's weight gradient (nothing needs
+//! its input's).
 
 use super::aligned::Aligned;
 use super::bf16;
@@ -15,7 +20,7 @@ use super::conv_bf16::{self, Operands};
 use super::conv_direct;
 use super::dense_bf16::{self, DenseBf16};
 use super::gemm::{View, matmul};
-use super::params::{CONV_B, CONV_W, FC1_B, FC1_W, FC2_B, FC2_W, Params, Q_B, Q_W};
+use super::params::{CONV_B, CONV_W, DenseSlots, Params};
 use super::pool::{self, Strided};
 use super::thread_split;
 use crate::shape::NetShape;
@@ -52,6 +57,9 @@ struct Part {
 #[derive(Debug)]
 pub struct FastNet {
     pub shape: NetShape,
+    /// Where the dense layers' parameters sit in a [`Params`] of `shape`.
+    slots: DenseSlots,
+    /// The convolution layers' geometry (unused without an image).
     geoms: [ConvGeom; 3],
     threads: usize,
     batch: usize,
@@ -98,12 +106,14 @@ impl FastNet {
     /// layer, the other dense layers, the gradients' sums and everything after them stay f32.
     ///
     /// # Panics
-    /// If `bf16` is asked for where neither bf16 kernel is available.
+    /// If `bf16` is asked for where neither bf16 kernel is available, or `shape` has neither an
+    /// image nor scalar inputs.
     #[must_use]
     pub fn with_precision(shape: NetShape, threads: usize, bf16: bool) -> Self {
         if bf16 && let Err(why) = super::bf16_matmul::available() {
             panic!("FastNet::with_precision: bf16 without a bf16 kernel ({why})");
         }
+        assert!(shape.has_image() || shape.scalars > 0, "FastNet: a network with no input ({shape:?})");
         let (f, mut h, mut w) = (shape.filters, shape.height, shape.width);
         let mut geoms = [ConvGeom { h, w, cin: shape.channels, cout: f }; 3];
         for g in &mut geoms {
@@ -112,6 +122,7 @@ impl FastNet {
         }
         Self {
             shape,
+            slots: DenseSlots::of(&shape),
             geoms,
             threads: threads.max(1),
             batch: 0,
@@ -136,9 +147,12 @@ impl FastNet {
     }
 
     /// Whether fc1 runs on the bf16 kernel for a batch of `b`: on the bf16 path, for a training
-    /// batch (`dense_bf16::MIN_BATCH`).
+    /// batch (`dense_bf16::MIN_BATCH`), behind an image. Without one (the multilayer perceptron)
+    /// fc1 is a small product (inputs of a vector observation, not thousands of convolution
+    /// features) and the network stays f32 on every path: its bf16 gain is unmeasured, as no
+    /// machine with a bf16 kernel was at hand (docs/PERFORMANCE.md, "The multilayer perceptron").
     fn fc1_on_bf16(&self, b: usize) -> bool {
-        self.bf16 && b >= dense_bf16::MIN_BATCH
+        self.bf16 && self.shape.has_image() && b >= dense_bf16::MIN_BATCH
     }
 
     /// Whether layer `l` is computed directly ([`is_direct`]).
@@ -167,7 +181,8 @@ impl FastNet {
             return;
         }
         self.batch = batch;
-        let n_parts = self.threads.min(batch).max(1);
+        // Without an image there is no convolution stack to split.
+        let n_parts = if self.shape.has_image() { self.threads.min(batch).max(1) } else { 0 };
         self.parts = (0..n_parts)
             .map(|p| {
                 let start = p * batch / n_parts;
@@ -197,13 +212,15 @@ impl FastNet {
         self.h1 = vec![0.0; batch * hidden];
         self.h2 = vec![0.0; batch * hidden];
         self.q = vec![0.0; batch * actions];
-        self.dx = vec![0.0; batch * flat];
+        // fc1's input gradient feeds the convolutions' backward pass only.
+        self.dx = if self.shape.has_image() { vec![0.0; batch * flat] } else { Vec::new() };
         self.dh1 = vec![0.0; batch * hidden];
         self.dh2 = vec![0.0; batch * hidden];
     }
 
     /// Q values (`batch × actions`, row-major) of `images` (`batch` frames of `H × W × C` bytes,
-    /// scaled by 1/255) and `scalars` (`batch × S`). Keeps the activations for [`Self::backward`].
+    /// scaled by 1/255; empty without an image, the batch is then the scalars') and `scalars`
+    /// (`batch × S`). Keeps the activations for [`Self::backward`].
     ///
     /// # Panics
     /// If the slices' lengths do not fit the network's shape.
@@ -216,7 +233,8 @@ impl FastNet {
     /// what [`Self::forward`] does first. Inference lays out once per weights version, with
     /// [`Self::pack_for_inference`], and then calls [`Self::forward_packed`].
     pub fn pack_kernels(&mut self, params: &Params) {
-        for (l, g) in self.geoms.iter().enumerate() {
+        let layers = if self.shape.has_image() { self.geoms.len() } else { 0 };
+        for (l, g) in self.geoms.iter().enumerate().take(layers) {
             conv::kernel_k_major(&params.values[CONV_W[l]], g, &mut self.k_major[l]);
             if self.layer_bf16(l) {
                 self.k_packed[l].pack(&self.k_major[l], View::rows(0, 9 * g.cin, g.cout, g.cout));
@@ -241,7 +259,7 @@ impl FastNet {
         let s = self.shape;
         // Not the Q head: a few columns, cheap to pack, and on its own layout the same bits as ever.
         let sizes = [(self.flat(), s.hidden), (s.hidden, s.hidden)];
-        for ((wt, w), (k, n)) in self.dense_wt.iter_mut().zip([FC1_W, FC2_W]).zip(sizes) {
+        for ((wt, w), (k, n)) in self.dense_wt.iter_mut().zip([self.slots.fc1_w, self.slots.fc2_w]).zip(sizes) {
             transpose(&params.values[w], n, k, wt);
         }
     }
@@ -252,10 +270,10 @@ impl FastNet {
     /// # Panics
     /// As [`Self::forward`], or if the kernels were never packed.
     pub fn forward_packed(&mut self, params: &Params, images: &[u8], scalars: &[f32]) -> &[f32] {
-        assert!(!self.k_major[0].is_empty(), "forward_packed before pack_kernels");
         let s = self.shape;
-        let frame = s.height * s.width * s.channels;
-        let batch = images.len() / frame;
+        assert!(!s.has_image() || !self.k_major[0].is_empty(), "forward_packed before pack_kernels");
+        let frame = s.image_bytes();
+        let batch = if s.has_image() { images.len() / frame } else { scalars.len() / s.scalars };
         assert!(
             images.len() == batch * frame && scalars.len() == batch * s.scalars,
             "forward: {} image bytes, {} scalars",
@@ -263,7 +281,7 @@ impl FastNet {
             scalars.len()
         );
         self.prepare(batch);
-        if self.parts.len() == 1 && self.threads > 1 {
+        if batch <= 1 && self.threads > 1 {
             // One image split across the threads: the whole pass runs on a worker of the pool, so
             // that each layer's bands are handed to the other worker directly (local queue, a
             // worker that is still awake) rather than injected from outside and woken for, six
@@ -278,9 +296,33 @@ impl FastNet {
     /// The body of [`Self::forward_packed`] once the buffers fit `batch`.
     fn run_forward(&mut self, params: &Params, images: &[u8], scalars: &[f32], batch: usize) {
         let s = self.shape;
-        let frame = s.height * s.width * s.channels;
         let flat = self.flat();
+        if s.has_image() {
+            self.conv_forward(params, images);
+        }
         let conv_flat = flat - s.scalars;
+        for (row, sc) in self.x.chunks_exact_mut(flat).zip(scalars.chunks_exact(s.scalars.max(1))) {
+            row[conv_flat..].copy_from_slice(&sc[..s.scalars]);
+        }
+        let (h, t, b, d) = (s.hidden, self.threads, batch, self.slots);
+        let fc1_on_bf16 = self.fc1_on_bf16(b);
+        let scratch = &mut self.dense_t;
+        let [fc1_t, fc2_t] = &self.dense_wt;
+        if fc1_on_bf16 {
+            self.fc1_bf16.forward(&mut self.h1, &self.x, &params.values[d.fc1_w], b, flat, h, t);
+            bias_act(&mut self.h1, &params.values[d.fc1_b], h, true);
+        } else {
+            dense(&mut self.h1, &self.x, (&params.values[d.fc1_w], fc1_t), &params.values[d.fc1_b], (b, flat, h), true, t, scratch);
+        }
+        dense(&mut self.h2, &self.h1, (&params.values[d.fc2_w], fc2_t), &params.values[d.fc2_b], (b, h, h), true, t, scratch);
+        dense(&mut self.q, &self.h2, (&params.values[d.q_w], &[]), &params.values[d.q_b], (b, h, s.actions), false, t, scratch);
+    }
+
+    /// The convolution stack of the forward pass: each image's row of `x` up to its scalars.
+    fn conv_forward(&mut self, params: &Params, images: &[u8]) {
+        let s = self.shape;
+        let frame = s.image_bytes();
+        let flat = self.flat();
         // One part: the image's layers are split across the threads; several: one thread each.
         let bands = if self.parts.len() == 1 { self.threads } else { 1 };
         let kernels = Kernels {
@@ -301,21 +343,6 @@ impl FastNet {
                 if i + 1 == n { work() } else { drop(scope.spawn(work)) }
             }
         });
-        for (row, sc) in self.x.chunks_exact_mut(flat).zip(scalars.chunks_exact(s.scalars.max(1))) {
-            row[conv_flat..].copy_from_slice(&sc[..s.scalars]);
-        }
-        let (h, t, b) = (s.hidden, self.threads, batch);
-        let fc1_on_bf16 = self.fc1_on_bf16(b);
-        let scratch = &mut self.dense_t;
-        let [fc1_t, fc2_t] = &self.dense_wt;
-        if fc1_on_bf16 {
-            self.fc1_bf16.forward(&mut self.h1, &self.x, &params.values[FC1_W], b, flat, h, t);
-            bias_act(&mut self.h1, &params.values[FC1_B], h, true);
-        } else {
-            dense(&mut self.h1, &self.x, (&params.values[FC1_W], fc1_t), &params.values[FC1_B], (b, flat, h), true, t, scratch);
-        }
-        dense(&mut self.h2, &self.h1, (&params.values[FC2_W], fc2_t), &params.values[FC2_B], (b, h, h), true, t, scratch);
-        dense(&mut self.q, &self.h2, (&params.values[Q_W], &[]), &params.values[Q_B], (b, h, s.actions), false, t, scratch);
     }
 
     /// Gradients of every parameter (written into `grads`) given `dq`, the loss's gradient with
@@ -325,24 +352,37 @@ impl FastNet {
     /// If `dq` does not match the last forward's batch.
     pub fn backward(&mut self, params: &Params, dq: &[f32], grads: &mut Params) {
         let s = self.shape;
-        let (b, h, a, flat, t) = (self.batch, s.hidden, s.actions, self.flat(), self.threads);
+        let (b, h, a, flat, t, d) = (self.batch, s.hidden, s.actions, self.flat(), self.threads, self.slots);
         assert_eq!(dq.len(), b * a, "backward: dq for a batch of {b}");
         // Dense layers, last to first: weight gradient = upstreamᵀ · input, bias = column sums,
-        // input gradient = upstream · weights, masked by the ReLU.
-        dense_grads(dq, &self.h2, b, a, h, weight_and_bias(grads, Q_W, Q_B), t);
-        back_through(&mut self.dh2, dq, &params.values[Q_W], b, a, h, Some(&self.h2), t);
-        dense_grads(&self.dh2, &self.h1, b, h, h, weight_and_bias(grads, FC2_W, FC2_B), t);
-        back_through(&mut self.dh1, &self.dh2, &params.values[FC2_W], b, h, h, Some(&self.h1), t);
+        // input gradient = upstream · weights, masked by the ReLU (fc1's only for the convolutions).
+        dense_grads(dq, &self.h2, b, a, h, weight_and_bias(grads, d.q_w, d.q_b), t);
+        back_through(&mut self.dh2, dq, &params.values[d.q_w], b, a, h, Some(&self.h2), t);
+        dense_grads(&self.dh2, &self.h1, b, h, h, weight_and_bias(grads, d.fc2_w, d.fc2_b), t);
+        back_through(&mut self.dh1, &self.dh2, &params.values[d.fc2_w], b, h, h, Some(&self.h1), t);
+        let image = s.has_image();
         if self.fc1_on_bf16(b) {
-            let (dw, db) = weight_and_bias(grads, FC1_W, FC1_B);
+            let (dw, db) = weight_and_bias(grads, d.fc1_w, d.fc1_b);
             self.fc1_bf16.weight_grad(dw, &self.dh1, &self.x, b, h, flat, t);
             bias_grad(&self.dh1, h, db);
-            self.fc1_bf16.input_grad(&mut self.dx, &self.dh1, &params.values[FC1_W], b, h, flat, t);
+            if image {
+                self.fc1_bf16.input_grad(&mut self.dx, &self.dh1, &params.values[d.fc1_w], b, h, flat, t);
+            }
         } else {
-            dense_grads(&self.dh1, &self.x, b, h, flat, weight_and_bias(grads, FC1_W, FC1_B), t);
-            back_through(&mut self.dx, &self.dh1, &params.values[FC1_W], b, h, flat, None, t);
+            dense_grads(&self.dh1, &self.x, b, h, flat, weight_and_bias(grads, d.fc1_w, d.fc1_b), t);
+            if image {
+                back_through(&mut self.dx, &self.dh1, &params.values[d.fc1_w], b, h, flat, None, t);
+            }
         }
+        if image {
+            self.conv_backward(params, grads);
+        }
+    }
 
+    /// The convolution stack's backward pass from fc1's input gradient (`dx`), into the
+    /// convolutions' gradients in `grads`.
+    fn conv_backward(&mut self, params: &Params, grads: &mut Params) {
+        let flat = self.flat();
         if self.layer_direct(0) {
             // The forward pass laid it out, but maybe from other parameters (a target network's).
             let g = &self.geoms[0];

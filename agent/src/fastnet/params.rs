@@ -7,15 +7,31 @@ use rand_chacha::ChaCha8Rng;
 
 use crate::shape::NetShape;
 
-/// Indices into [`Params::values`], in [`NetShape::parameters`] order.
+/// Indices into [`Params::values`] of the convolutions' parameters, where the network has an
+/// image (they come first, in [`NetShape::parameters`] order).
 pub const CONV_W: [usize; 3] = [0, 2, 4];
 pub const CONV_B: [usize; 3] = [1, 3, 5];
-pub const FC1_W: usize = 6;
-pub const FC1_B: usize = 7;
-pub const FC2_W: usize = 8;
-pub const FC2_B: usize = 9;
-pub const Q_W: usize = 10;
-pub const Q_B: usize = 11;
+
+/// Indices into [`Params::values`] of the dense layers' parameters: after the convolutions' six
+/// where the network has an image, first without one ([`NetShape::parameters`] order).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct DenseSlots {
+    pub fc1_w: usize,
+    pub fc1_b: usize,
+    pub fc2_w: usize,
+    pub fc2_b: usize,
+    pub q_w: usize,
+    pub q_b: usize,
+}
+
+impl DenseSlots {
+    /// The slots of a network of `shape`.
+    #[must_use]
+    pub fn of(shape: &NetShape) -> Self {
+        let o = if shape.has_image() { 2 * CONV_W.len() } else { 0 };
+        Self { fc1_w: o, fc1_b: o + 1, fc2_w: o + 2, fc2_b: o + 3, q_w: o + 4, q_b: o + 5 }
+    }
+}
 
 /// Every parameter of a network (or a gradient or moment of the same shape).
 #[derive(Debug, Clone, PartialEq)]
@@ -127,6 +143,20 @@ impl Adam {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn dense_slots_name_the_dense_parameters_with_and_without_an_image() {
+        let camera = NetShape { height: 16, width: 16, channels: 1, scalars: 2, actions: 3, filters: 4, hidden: 8 };
+        for shape in [camera, NetShape::mlp(37, 16, 5)] {
+            let (names, d) = (shape.parameters(), DenseSlots::of(&shape));
+            let at = |i: usize| names[i].0.as_str();
+            assert_eq!(
+                [d.fc1_w, d.fc1_b, d.fc2_w, d.fc2_b, d.q_w, d.q_b].map(at),
+                ["fc1.weight", "fc1.bias", "fc2.weight", "fc2.bias", "q.weight", "q.bias"]
+            );
+            assert_eq!(names.len(), d.q_b + 1);
+        }
+    }
 
     #[test]
     fn adam_gives_the_same_bits_on_any_number_of_threads() {

@@ -20,7 +20,7 @@ fn skip(test: &str) -> bool {
 
 fn inputs(shape: NetShape, batch: usize, seed: u64) -> (Vec<u8>, Vec<f32>, Vec<f32>) {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    let images = (0..batch * shape.height * shape.width * shape.channels).map(|_| (rng.next_u32() & 0xff) as u8).collect();
+    let images = (0..batch * shape.image_bytes()).map(|_| (rng.next_u32() & 0xff) as u8).collect();
     let mut float = || rng.next_u32() as f32 / u32::MAX as f32 * 2.0 - 1.0;
     let scalars = (0..batch * shape.scalars).map(|_| float()).collect();
     let coef = (0..batch * shape.actions).map(|_| float()).collect();
@@ -161,4 +161,20 @@ fn bf16_buffers_reused_across_calls_leak_nothing() {
     net.backward(&params, &coef, &mut grads);
     assert_eq!(q, fresh_q);
     assert_eq!(grads.values, fresh_g.values);
+}
+
+/// The multilayer perceptron (no image) stays f32 on the bf16 path (`FastNet::fc1_on_bf16`): at
+/// the learner's batch too, bit for bit.
+#[test]
+fn the_mlp_is_f32_on_the_bf16_path() {
+    if skip("the_mlp_is_f32_on_the_bf16_path") {
+        return;
+    }
+    let mlp = NetShape::mlp(150, 256, 27);
+    for batch in [1, 4, 256] {
+        let (q32, g32) = run(mlp, false, 2, batch, 7);
+        let (q16, g16) = run(mlp, true, 2, batch, 7);
+        assert_eq!(q16, q32, "batch {batch}");
+        assert_eq!(g16.values, g32.values, "batch {batch}");
+    }
 }

@@ -1,6 +1,7 @@
 //! The fast network against candle's network (`agent::candle_net::QNetwork`): same Q values and same
 //! gradients within 1e-4 relative error, over odd sizes, batch splits and thread counts; and its
-//! gradients against finite differences.
+//! gradients against finite differences; the same for the multilayer perceptron (a shape with no
+//! image).
 
 use agent::NetShape;
 use agent::candle_net::{images_tensor, network, var_map};
@@ -24,9 +25,9 @@ fn reference(shape: NetShape, params: &Params, images: &[u8], scalars: &[f32], c
     let dev = Device::Cpu;
     let vars = var_map(params).unwrap();
     let net = network(&vars, shape, &dev).unwrap();
-    let frame = shape.height * shape.width * shape.channels;
-    let refs: Vec<&[u8]> = images.chunks_exact(frame).collect();
-    let b = refs.len();
+    let b = coef.len() / shape.actions;
+    let frame = shape.image_bytes();
+    let refs: Vec<&[u8]> = (0..b).map(|i| &images[i * frame..(i + 1) * frame]).collect();
     let x = images_tensor(&refs, &shape, &dev).unwrap();
     let s = Tensor::from_slice(scalars, (b, shape.scalars), &dev).unwrap();
     let q = net.forward(&x, &s).unwrap();
@@ -51,7 +52,7 @@ fn rel_err(a: &[f32], b: &[f32]) -> f32 {
 /// where a pooled size is odd: see the finite-difference test of odd sizes).
 fn check_against_candle(shape: NetShape, batch: usize, threads: usize, seed: u64, grads: bool) {
     let params = Params::init(shape, seed);
-    let images = random_bytes(batch * shape.height * shape.width * shape.channels, seed + 1);
+    let images = random_bytes(batch * shape.image_bytes(), seed + 1);
     let scalars = random_floats(batch * shape.scalars, seed + 2);
     let coef = random_floats(batch * shape.actions, seed + 3);
     let (q_ref, g_ref) = reference(shape, &params, &images, &scalars, &coef);
@@ -120,6 +121,25 @@ fn one_image_split_across_threads_matches_one_thread() {
 }
 
 #[test]
+fn the_mlp_matches_candle() {
+    let shape = NetShape::mlp(37, 16, 5);
+    check_against_candle(shape, 1, 1, 31, true);
+    check_against_candle(shape, 1, 2, 32, true);
+    check_against_candle(shape, 7, 2, 33, true);
+    check_against_candle(NetShape::mlp(3, 5, 2), 4, 3, 34, true);
+}
+
+/// The vector run's network at the learner's batch of 256 (where fc1 would run on the bf16
+/// kernel on that path) and one actor's observation split across threads.
+#[test]
+fn the_mlp_matches_candle_at_the_vector_runs_size() {
+    let shape = NetShape::mlp(150, 256, 27);
+    check_against_candle(shape, 256, 2, 35, true);
+    check_against_candle(shape, 1, 2, 36, false);
+    check_against_candle(shape, 4, 1, 37, false);
+}
+
+#[test]
 fn repeated_calls_reuse_buffers_without_leaking_state() {
     let shape = NetShape { height: 16, width: 12, channels: 3, scalars: 2, actions: 4, filters: 8, hidden: 8 };
     let params = Params::init(shape, 9);
@@ -139,6 +159,23 @@ fn repeated_calls_reuse_buffers_without_leaking_state() {
 }
 
 #[test]
+fn the_mlp_reuses_buffers_without_leaking_state() {
+    let shape = NetShape::mlp(11, 8, 4);
+    let params = Params::init(shape, 9);
+    let mut net = FastNet::new(shape, 2);
+    let (sa, sb) = (random_floats(4 * 11, 12), random_floats(2 * 11, 13));
+    let first = net.forward(&params, &[], &sa).to_vec();
+    let mut g1 = Params::zeros(shape);
+    net.backward(&params, &[1.0; 16], &mut g1);
+    net.forward(&params, &[], &sb);
+    let again = net.forward(&params, &[], &sa).to_vec();
+    let mut g2 = Params::zeros(shape);
+    net.backward(&params, &[1.0; 16], &mut g2);
+    assert_eq!(first, again, "same inputs, same Q values, bit for bit");
+    assert_eq!(g1, g2, "same gradients, bit for bit");
+}
+
+#[test]
 fn gradients_agree_with_finite_differences() {
     finite_differences(NetShape { height: 8, width: 8, channels: 2, scalars: 2, actions: 2, filters: 3, hidden: 5 });
 }
@@ -151,11 +188,17 @@ fn gradients_agree_with_finite_differences_on_odd_sizes() {
     finite_differences(NetShape { height: 14, width: 18, channels: 3, scalars: 1, actions: 2, filters: 3, hidden: 5 });
 }
 
+#[test]
+fn the_mlps_gradients_agree_with_finite_differences() {
+    finite_differences(NetShape::mlp(37, 16, 5));
+    finite_differences(NetShape::mlp(3, 5, 2));
+}
+
 /// f64 central differences of the f32 network on a tiny shape: a check of the backward pass
 /// that does not rely on candle.
 fn finite_differences(shape: NetShape) {
     let mut params = Params::init(shape, 21);
-    let images = random_bytes(2 * shape.height * shape.width * shape.channels, 22);
+    let images = random_bytes(2 * shape.image_bytes(), 22);
     let scalars = random_floats(2 * shape.scalars, 23);
     let coef = random_floats(2 * shape.actions, 24);
     let mut net = FastNet::new(shape, 1);
@@ -185,5 +228,5 @@ fn finite_differences(shape: NetShape) {
             checked += 1;
         }
     }
-    assert_eq!(checked, 72);
+    assert_eq!(checked, 6 * params.values.len());
 }

@@ -153,16 +153,25 @@ enum Command {
 
 #[derive(Debug, Subcommand)]
 enum BenchCommand {
-    /// Times full DQN updates of the paper network and forward passes at batch 1 and
-    /// --forward-batch (medians), each also as a fraction of the machine's GEMM peak, measured in
-    /// the same run. docs/PERFORMANCE.md lists the JSON fields.
+    /// Times full DQN updates of the paper network (or of a vector input's multilayer
+    /// perceptron) and forward passes at batch 1 and --forward-batch (medians), each also as a
+    /// fraction of the machine's GEMM peak, measured in the same run. docs/PERFORMANCE.md lists
+    /// the JSON fields.
     Train {
-        /// Input image WIDTHxHEIGHTxCHANNELS.
-        #[arg(long, default_value = "84x84x3", value_parser = learner_cli::bench::parse_input)]
-        input: (usize, usize, usize),
-        /// Transitions per update.
-        #[arg(long, default_value_t = 32)]
-        batch: usize,
+        /// Input: an image WIDTHxHEIGHTxCHANNELS (with the paper's 2 scalar inputs), or
+        /// vector:N, the multilayer perceptron over N values.
+        #[arg(long, default_value = "84x84x3", value_parser = learner_cli::bench::parse_input, conflicts_with = "preset")]
+        input: learner_cli::bench::Input,
+        /// A named preset's network (`net_shape()`), batch size and agent settings instead of
+        /// --input (see `learner config --preset`).
+        #[arg(long, value_name = "NAME")]
+        preset: Option<String>,
+        /// Actions (the Q head's outputs) of an --input network.
+        #[arg(long, default_value_t = 6, conflicts_with = "preset")]
+        actions: usize,
+        /// Transitions per update (default: the preset's batch size, else 32).
+        #[arg(long)]
+        batch: Option<usize>,
         /// Images per forward pass for `forward_ms_per_sample` (an actor's batch).
         #[arg(long, default_value_t = 8)]
         forward_batch: usize,
@@ -384,10 +393,21 @@ fn main() -> Result<()> {
                 println!("wrote {}", out.display());
                 Ok(())
             }
-            Command::Bench(BenchCommand::Train { input, batch, forward_batch, updates, threads, candle, precision, json }) => {
-                if batch == 0 || forward_batch == 0 || updates == 0 || threads == Some(0) {
-                    anyhow::bail!("--batch, --forward-batch, --updates and --threads must be at least 1");
+            Command::Bench(BenchCommand::Train { input, preset, actions, batch, forward_batch, updates, threads, candle, precision, json }) => {
+                if batch == Some(0) || forward_batch == 0 || updates == 0 || threads == Some(0) || actions == 0 {
+                    anyhow::bail!("--batch, --forward-batch, --updates, --threads and --actions must be at least 1");
                 }
+                let (shape, agent, label) = match preset {
+                    Some(name) => {
+                        let cfg = agent::config::RunConfig::preset(&name).map_err(|e| anyhow::anyhow!("--preset: {e}"))?;
+                        (cfg.net_shape(), cfg.agent, format!("preset:{name}"))
+                    }
+                    None => {
+                        let agent = agent::config::AgentConfig::default();
+                        (input.shape(actions, &agent), agent, input.to_string())
+                    }
+                };
+                let batch = batch.unwrap_or(if label.starts_with("preset:") { agent.batch_size } else { 32 });
                 let threads = threads.unwrap_or_else(agent::fastnet::default_threads);
                 use agent::fastnet::Precision;
                 let precisions = match precision.as_str() {
@@ -395,7 +415,7 @@ fn main() -> Result<()> {
                     one => vec![one.parse::<Precision>().map_err(anyhow::Error::msg)?],
                 };
                 let v = tokio::task::spawn_blocking(move || {
-                    learner_cli::bench::train(input, batch, forward_batch, updates, threads, candle, &precisions)
+                    learner_cli::bench::train(shape, &label, &agent, batch, forward_batch, updates, threads, candle, &precisions)
                 })
                 .await??;
                 print_result(&v, json);

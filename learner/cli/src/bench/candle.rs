@@ -28,8 +28,8 @@ fn candle_step(shape: &NetShape, params: &Params, b: &Batch) -> candle_core::Res
     let vars = var_map(params)?;
     let net = network(&vars, *shape, &dev)?;
     let n = b.len();
-    let frame = shape.height * shape.width * shape.channels;
-    let images = |bytes: &[u8]| images_tensor(&bytes.chunks_exact(frame).collect::<Vec<_>>(), shape, &dev);
+    let frame = shape.image_bytes();
+    let images = |bytes: &[u8]| images_tensor(&(0..n).map(|i| &bytes[i * frame..(i + 1) * frame]).collect::<Vec<_>>(), shape, &dev);
     let scalars = |v: &[f32]| Tensor::from_slice(v, (n, shape.scalars), &dev);
     let q_next = net.forward(&images(&b.next_images)?, &scalars(&b.next_scalars)?)?.max(D::Minus1)?.detach();
     let y = (Tensor::from_slice(&b.rewards, n, &dev)? + (Tensor::from_slice(&b.discounts, n, &dev)? * q_next)?)?;

@@ -1,5 +1,6 @@
-//! `learner bench train`: full DQN updates and forward passes of the paper network, in f32 and
-//! bf16, as fractions of the machine's GEMM peak.
+//! `learner bench train`: full DQN updates and forward passes of the paper network (or of the
+//! multilayer perceptron of a vector input), in f32 and bf16, as fractions of the machine's GEMM
+//! peak.
 
 use std::time::Instant;
 
@@ -14,10 +15,10 @@ use agent::config::AgentConfig;
 use agent::fastnet::{FastNet, Precision};
 use learner::training::dqn::{Batch, Dqn};
 
-/// A batch of random transitions for the paper's network at `shape`.
+/// A batch of random transitions for the network of `shape` (scalar inputs in 0–1).
 fn random_batch(shape: &NetShape, batch: usize) -> Batch {
     let mut rng = ChaCha8Rng::seed_from_u64(1);
-    let frame = shape.height * shape.width * shape.channels;
+    let frame = shape.image_bytes();
     let mut bytes = |n: usize| -> Vec<u8> { (0..n).map(|_| (rng.next_u32() & 0xff) as u8).collect() };
     let (images, next_images) = (bytes(batch * frame), bytes(batch * frame));
     let mut rng = ChaCha8Rng::seed_from_u64(2);
@@ -35,7 +36,9 @@ fn random_batch(shape: &NetShape, batch: usize) -> Batch {
 }
 
 /// Times full DQN updates (online forward and backward, target forward on the next states,
-/// optimizer step) of the paper's network at `input` with batch `batch` on `threads` threads,
+/// optimizer step) of the network of `shape` (`input` names it in the output), trained as `agent`
+/// says (its double DQN and loss; its precision is replaced by each of `precisions`), with batch
+/// `batch` on `threads` threads,
 /// and forward passes at batch 1 and at `forward_batch`, in each of `precisions` (`f32`, `bf16`),
 /// alternating between them call by call so that both see the same machine; calibrates the
 /// machine (a square f32 GEMM on 1 and on `threads` threads, and a bf16 one where a bf16 kernel
@@ -45,8 +48,11 @@ fn random_batch(shape: &NetShape, batch: usize) -> Batch {
 ///
 /// # Errors
 /// `bf16` where no bf16 kernel runs (the message says why), or candle's failure.
+#[allow(clippy::too_many_arguments)]
 pub fn train(
-    input: (usize, usize, usize),
+    shape: NetShape,
+    input: &str,
+    agent: &AgentConfig,
     batch: usize,
     forward_batch: usize,
     updates: usize,
@@ -54,9 +60,6 @@ pub fn train(
     reference: bool,
     precisions: &[Precision],
 ) -> Result<serde_json::Value> {
-    let (w, h, c) = input;
-    let agent = AgentConfig::default();
-    let shape = NetShape { height: h, width: w, channels: c, scalars: 2, actions: 6, filters: agent.conv_filters, hidden: agent.hidden };
     let chosen: Vec<(Precision, bool)> = precisions
         .iter()
         .map(|&p| Ok((p, p.resolve().with_context(|| format!("--precision {}", p.name()))?.bf16)))
@@ -68,7 +71,7 @@ pub fn train(
     tracing::info!(peak_gflops_1_thread = peak_1, peak_gflops = peak, ?peak_bf16, threads, "GEMM calibration");
     let update_batch = random_batch(&shape, batch);
     let b = random_batch(&shape, forward_batch);
-    let (frame, s) = (h * w * c, shape.scalars);
+    let (frame, s) = (shape.image_bytes(), shape.scalars);
     let mut paths: Vec<(Dqn, FastNet)> = chosen
         .iter()
         .map(|&(p, bf16)| {
@@ -112,7 +115,12 @@ pub fn train(
         .collect();
     let mut out = serde_json::json!({
         "batch": batch,
-        "input": format!("{w}x{h}x{c}"),
+        "input": input,
+        "net": if shape.has_image() { "conv" } else { "mlp" },
+        "scalars": shape.scalars,
+        "actions": shape.actions,
+        "hidden": shape.hidden,
+        "double_dqn": agent.double_dqn,
         "threads": threads,
         "forward_batch": forward_batch,
         "forward_mflop_per_image": f / 1e6,
