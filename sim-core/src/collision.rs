@@ -150,6 +150,24 @@ impl StaticGrid {
         (f.x.clamp(0.0, (self.width - 1) as f32) as usize, f.y.clamp(0.0, (self.height - 1) as f32) as usize)
     }
 
+    /// Appends to `out` the obstacles whose bounds touch a cell over the rectangle `[lo, hi]`,
+    /// each once, in ascending order of their index (`out` is cleared first).
+    pub fn obstacles_in(&self, lo: Vec2, hi: Vec2, out: &mut Vec<u32>) {
+        out.clear();
+        let ((x0, y0), (x1, y1)) = (self.cell_of(lo), self.cell_of(hi));
+        for y in y0..=y1 {
+            out.extend(self.cells[y * self.width + x0..=y * self.width + x1].iter().flatten());
+        }
+        out.sort_unstable();
+        out.dedup();
+    }
+
+    /// Obstacle `id`'s box and what hitting it counts as.
+    #[must_use]
+    pub fn obstacle(&self, id: u32) -> (Obb, CollisionKind) {
+        self.boxes[id as usize]
+    }
+
     /// The first static obstacle that `body` overlaps, if any.
     #[must_use]
     pub fn hit(&self, body: &Obb) -> Option<CollisionKind> {

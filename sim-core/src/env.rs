@@ -22,6 +22,8 @@ use crate::planner::{Detour, LocalPlanner, Planner, WorldView};
 use crate::reward::{Outcome, RewardTerms, StepMeasures};
 use crate::route::{Route, RouteTracker, Tracking};
 use crate::scenario::{Scenario, eval_route, random_route};
+use crate::sensor::ego_path::PathInput;
+use crate::sensor::{Sensor, World};
 use crate::town::Town;
 use crate::traffic::{EgoRequest, EgoView, RELEASE_DISTANCE, Traffic};
 use crate::vehicle::{Action, VehicleState};
@@ -128,6 +130,10 @@ pub struct Env {
     scene: Vec<SceneBox>,
     /// The vector sensor's last reading (empty without `[env.vector]`).
     vector: Vec<f32>,
+    /// The vector sensor's buffers.
+    sensor: Sensor,
+    /// The ego's speed before the last step (0 at reset): the sensor's acceleration.
+    prev_speed: f32,
 }
 
 impl Env {
@@ -181,6 +187,8 @@ impl Env {
             frames,
             scene: Vec::new(),
             vector: Vec::new(),
+            sensor: Sensor::default(),
+            prev_speed: 0.0,
         };
         env.reset(0, Scenario::Random)?;
         Ok(env)
@@ -233,6 +241,8 @@ impl Env {
         self.ego_request = None;
         self.right_of_way_violations = 0;
         self.done = false;
+        self.prev_speed = 0.0;
+        self.sensor.clear();
 
         self.traffic = Traffic::empty(&self.town, self.cfg.traffic.idm, self.cfg.vehicle);
         if let Some(ahead) = self.cfg.traffic.parked_car_ahead {
@@ -272,6 +282,7 @@ impl Env {
             return Err(EnvError::EpisodeOver);
         }
         let dt = self.cfg.dt;
+        self.prev_speed = self.ego.speed;
         self.ego.step(&self.cfg.vehicle, action, dt);
         self.tracking = self.tracker.update(&self.route, self.ego.pos);
         self.update_ego_junction();
@@ -423,11 +434,34 @@ impl Env {
     /// Reads the vector sensor, when configured.
     fn sense(&mut self) {
         let Some(vc) = &self.cfg.vector else { return };
-        let n = vc.len(self.cfg.variant);
-        self.vector.clear();
-        // Skeleton: ego speed, then zeros (the sensor fills the rest).
-        self.vector.push((self.ego.speed / self.cfg.vehicle.max_speed).clamp(-1.0, 1.0));
-        self.vector.resize(n, 0.0);
+        let hybrid = self.cfg.variant == Variant::Hybrid;
+        let (d, features) = if hybrid { (self.planned_tracking().d, self.path_features()) } else { (0.0, [0.0; PATH_FEATURES]) };
+        let (route, detour) = (&self.route, self.planner.detour());
+        let point_at = |s: f32| match &detour {
+            None => route.path.point_at(s),
+            Some(d) => bent_point(route, d, s),
+        };
+        let path = hybrid.then(|| PathInput {
+            d,
+            features,
+            ego_s: self.tracking.s,
+            route_length: route.length(),
+            spacing: self.cfg.waypoint_spacing,
+            point_at: &point_at,
+        });
+        let world = World {
+            town: &self.town,
+            vehicle: &self.cfg.vehicle,
+            ego: &self.ego,
+            prev_speed: self.prev_speed,
+            dt: self.cfg.dt,
+            traffic: &self.traffic,
+            parked: &self.parked,
+            hazard: self.hazard.as_ref(),
+            path,
+            d0: self.cfg.reward.d0,
+        };
+        self.sensor.read(vc, &world, &mut self.vector);
     }
 
     /// Renders the bird's-eye debug view around the ego vehicle.

@@ -15,7 +15,7 @@ use crate::eval::routes::load_town;
 #[derive(Debug, Subcommand)]
 pub enum BenchCommand {
     /// Environment steps per second on one core (physics, traffic, collisions, reward, and the
-    /// camera with --camera).
+    /// camera with --camera or the vector sensor with --observation vector).
     Sim(SimArgs),
 }
 
@@ -40,6 +40,18 @@ pub struct SimArgs {
     /// the same run: the report adds both rates and their ratio.
     #[arg(long)]
     pub hazards: bool,
+    /// What the environment observes each step: `camera` (the front camera with --camera, none
+    /// without), `vector` (the vector sensor, `[env.vector]` defaults, no camera) or `none`.
+    #[arg(long, value_enum, default_value_t = Observation::Camera)]
+    pub observation: Observation,
+}
+
+/// The observation `bench sim` times.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum Observation {
+    Camera,
+    Vector,
+    None,
 }
 
 pub fn run(cmd: &BenchCommand) -> Result<()> {
@@ -54,6 +66,12 @@ fn sim(args: &SimArgs) -> Result<()> {
     let mut cfg = EnvConfig::default();
     cfg.traffic.vehicles = args.vehicles;
     cfg.camera = args.camera.map(|(width, height)| CameraConfig { width, height, ..CameraConfig::default() });
+    if args.observation != Observation::Camera && args.camera.is_some() {
+        anyhow::bail!("--camera needs --observation camera");
+    }
+    if args.observation == Observation::Vector {
+        cfg.vector = Some(sim_core::sensor::VectorConfig::default());
+    }
     let load = Instant::now();
     let town = load_town(args.map.as_deref())?;
     let map_load_secs = load.elapsed().as_secs_f64();
@@ -70,6 +88,7 @@ fn sim(args: &SimArgs) -> Result<()> {
             "steps_per_sec": steps_per_sec.round(),
             "vehicles": args.vehicles,
             "camera": args.camera.map(|(w, h)| format!("{w}x{h}")),
+            "observation": format!("{:?}", args.observation).to_lowercase(),
             "map": args.map.as_ref().map(|p| p.display().to_string()),
             "map_load_secs": map_load_secs,
         });
@@ -81,9 +100,10 @@ fn sim(args: &SimArgs) -> Result<()> {
         println!("{v}");
     } else {
         println!(
-            "vehicles {}{}: {:.0} steps/s in Env::step, {:.0} steps/s with resets ({} episodes), map loaded in {:.3} s",
+            "vehicles {}{}{}: {:.0} steps/s in Env::step, {:.0} steps/s with resets ({} episodes), map loaded in {:.3} s",
             args.vehicles,
             if hazards.is_some() { ", a hazard per episode" } else { "" },
+            if args.observation == Observation::Vector { ", vector sensor" } else { "" },
             steps_per_sec,
             with_resets,
             episodes,

@@ -54,6 +54,19 @@ pub struct DriveArgs {
     /// 120–220 m routes of 60 s as `actor eval --suite hazards` drives them.
     #[arg(long, value_name = "KIND")]
     pub hazard: Option<String>,
+    /// Read the vector sensor (`[env.vector]`, its defaults) each step; with --record the
+    /// bird's-eye view shows what it lists and its rays. A checkpoint trained on it reads it anyway.
+    #[arg(long)]
+    pub vector: bool,
+}
+
+/// The bird's-eye view, with the vector sensor's reading drawn over it when the env has one.
+fn birdseye_with_vector(env: &mut Env, view: &BirdsEye) -> sim_core::camera::Image {
+    let mut bev = env.birdseye(view);
+    if let (Some(reading), Some(vc)) = (env.vector(), &env.cfg.vector) {
+        view.draw_vector(&mut bev, env.ego.pos, env.ego.pos, env.ego.heading, reading, vc, env.cfg.variant);
+    }
+    bev
 }
 
 /// Parses `WIDTHxHEIGHT`.
@@ -101,9 +114,13 @@ pub fn run(args: &DriveArgs) -> Result<()> {
             let agent = crate::eval::greedy::load_checkpoint(std::path::Path::new(path))
                 .with_context(|| format!("--policy `{path}` is neither `expert`, `random` nor a checkpoint"))?;
             cfg.camera.clone_from(&agent.cfg.env.camera);
+            cfg.vector.clone_from(&agent.cfg.env.vector);
             Some(agent)
         }
     };
+    if args.vector && cfg.vector.is_none() {
+        cfg.vector = Some(sim_core::sensor::VectorConfig::default());
+    }
     let birdseye = BirdsEye::new(&BirdsEyeConfig::default())?;
     let mut env = Env::new(town, cfg).context("creating the environment")?;
     let mut reports = Vec::new();
@@ -121,7 +138,7 @@ pub fn run(args: &DriveArgs) -> Result<()> {
             let mut episode = Episode::default();
             loop {
                 if let Some(rec) = recorder.as_mut() {
-                    let bev = env.birdseye(&birdseye);
+                    let bev = birdseye_with_vector(&mut env, &birdseye);
                     rec.frame(env.steps(), env.image(), &bev)?;
                 }
                 let action = match (&mut policy, &mut checkpoint) {
@@ -139,7 +156,7 @@ pub fn run(args: &DriveArgs) -> Result<()> {
                         rep.kinds.push(kind.name());
                     }
                     if let Some(rec) = recorder.take() {
-                        let bev = env.birdseye(&birdseye);
+                        let bev = birdseye_with_vector(&mut env, &birdseye);
                         let mut rec = rec;
                         rec.frame(env.steps(), env.image(), &bev)?;
                         rec.finish()?;

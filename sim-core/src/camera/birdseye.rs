@@ -1,6 +1,6 @@
 //! The bird's-eye debug view: the map around the ego vehicle seen from above, north up, with the
 //! vehicles, the ego (red), the A* route (green), its waypoints (blue) and the waypoint closest to
-//! the ego (magenta).
+//! the ego (magenta); and, over it, what the vector sensor reads ([`BirdsEye::draw_vector`]).
 
 use serde::{Deserialize, Serialize};
 
@@ -9,8 +9,11 @@ use super::palette::{self, raster_table};
 use super::scene::SceneBox;
 use crate::collision::Obb;
 use crate::config::error::ConfigError;
-use crate::math::{Vec2, cross};
+use crate::config::variant::Variant;
+use crate::math::{Vec2, cross, dir};
 use crate::route::Route;
+use crate::sensor::geometry::Box2;
+use crate::sensor::{RAY_FIELDS, VectorConfig};
 use crate::town::Town;
 
 /// Size and scale of the bird's-eye view.
@@ -94,6 +97,74 @@ impl BirdsEye {
         }
         fill(&mut img, &ego.corners().map(to_pixel), palette::EGO);
         img
+    }
+}
+
+/// Colours of the vector sensor's overlay: listed objects by kind (vehicle, parked car, walker,
+/// prop), a ray's line to its obstacle and to nothing, the road's edge along a ray.
+const SENSED: [[u8; 3]; 4] = [[255, 220, 0], [255, 140, 0], [0, 255, 255], [255, 255, 255]];
+const RAY_HIT: [u8; 3] = [255, 60, 60];
+const RAY_FREE: [u8; 3] = [110, 110, 110];
+const ROAD_EDGE: [u8; 3] = [0, 200, 255];
+
+impl BirdsEye {
+    /// Draws a vector sensor reading (`Env::vector`, laid out by `cfg` for `variant`) over `img`,
+    /// a view rendered around `centre`, for the ego at `ego_pos` heading `ego_heading`: an outline
+    /// of each listed object in its kind's colour, each ray's line to its obstacle (red) or its
+    /// full length (grey) with a dot where it leaves the road, and the path's waypoints.
+    #[allow(clippy::too_many_arguments)]
+    pub fn draw_vector(
+        &self,
+        img: &mut Image,
+        centre: Vec2,
+        ego_pos: Vec2,
+        ego_heading: f32,
+        reading: &[f32],
+        cfg: &VectorConfig,
+        variant: Variant,
+    ) {
+        let m = self.cfg.metres_per_pixel;
+        let half = self.cfg.size as f32 / 2.0;
+        let to_pixel = |p: Vec2| Vec2::new((p.x - centre.x) / m + half, half - (p.y - centre.y) / m);
+        let axis = dir(ego_heading);
+        let to_world = |v: Vec2| ego_pos + Vec2::new(axis.x * v.x - axis.y * v.y, axis.y * v.x + axis.x * v.y);
+        let range = cfg.range;
+        let mut at = 0;
+        for seg in cfg.segments(variant) {
+            let values = &reading[at..(at + seg.count * seg.fields).min(reading.len())];
+            at += seg.count * seg.fields;
+            match seg.name {
+                "waypoints" => {
+                    for w in values.chunks_exact(2) {
+                        dot(img, to_pixel(to_world(Vec2::new(w[0], w[1]) * range)), 1, ROAD_EDGE);
+                    }
+                }
+                "objects" => {
+                    for o in values.chunks_exact(seg.fields).filter(|o| o[0] > 0.5) {
+                        let body = Box2::with_axis(
+                            to_world(Vec2::new(o[1], o[2]) * range),
+                            to_world(Vec2::new(o[5], o[6])) - ego_pos,
+                            Vec2::new(o[7] * 5.0, o[8] * 2.5),
+                        );
+                        let kind = (9..13).find(|&k| o[k] > 0.5).map_or(3, |k| k - 9);
+                        outline(img, &body.corners().map(to_pixel), SENSED[kind]);
+                    }
+                }
+                "rays" => {
+                    let n = seg.count;
+                    for (k, r) in values.chunks_exact(RAY_FIELDS).enumerate() {
+                        let a = std::f32::consts::TAU * k as f32 / n as f32;
+                        let u = Vec2::new(crate::math::cos(a), crate::math::sin(a));
+                        let hit = to_world(u * r[0] * range);
+                        line(img, to_pixel(ego_pos), to_pixel(hit), if r[0] < 1.0 { RAY_HIT } else { RAY_FREE });
+                        if r[1] < 1.0 {
+                            dot(img, to_pixel(to_world(u * r[1] * range)), 1, ROAD_EDGE);
+                        }
+                    }
+                }
+                _ => {}
+            }
+        }
     }
 }
 

@@ -7,12 +7,35 @@
 //! hidden behind a building or another object is not in the list.
 //!
 //! The layout is part of what trained checkpoints expect: [`LAYOUT_VERSION`] names it, and actors
-//! and learner must agree on it (checked at `Register`).
+//! and learner must agree on it (checked at `Register`). Each field's meaning and scale:
+//! docs/MODEL.md, "The vector observation".
+//!
+//! A reading ([`Sensor::read`]) is plain arithmetic on the state, in a fixed order, with no
+//! allocation once its buffers have grown: `ego_path.rs` (the ego and the planner's path),
+//! `objects.rs` (gathering, occlusion and the list), `rays.rs`, over `geometry.rs` (boxes, lines of
+//! sight) and `statics.rs` (the static obstacles near the ego).
+
+pub mod ego_path;
+pub mod geometry;
+pub mod objects;
+pub mod rays;
+pub mod statics;
 
 use serde::{Deserialize, Serialize};
 
+use crate::collision::Obb;
 use crate::config::error::ConfigError;
 use crate::config::variant::Variant;
+use crate::hazards::Hazard;
+use crate::math::{Vec2, dir};
+use crate::town::Town;
+use crate::traffic::Traffic;
+use crate::vehicle::{VehicleParams, VehicleState};
+
+use self::ego_path::{PathInput, write_ego, write_path};
+use self::objects::{CAMERA_AHEAD, OCCLUDER_MARGIN, Objects};
+use self::rays::{RayFan, edge_distance, obstacle_distance};
+use self::statics::StaticCache;
 
 /// The layout's name: actors send theirs at `Register`, checkpoints record it. Change it whenever
 /// a field's meaning, scale or position changes.
@@ -100,6 +123,83 @@ impl VectorConfig {
     pub fn describe(&self, variant: Variant) -> String {
         let parts: Vec<String> = self.segments(variant).iter().map(|s| format!("{}:{}x{}", s.name, s.count, s.fields)).collect();
         format!("{LAYOUT_VERSION} {}", parts.join(" "))
+    }
+}
+
+/// What a reading looks at: the state of an environment, by reference.
+#[derive(Debug)]
+pub struct World<'a> {
+    pub town: &'a Town,
+    pub vehicle: &'a VehicleParams,
+    pub ego: &'a VehicleState,
+    /// The ego's speed one step earlier (0 at reset), m/s.
+    pub prev_speed: f32,
+    /// Step length, seconds.
+    pub dt: f32,
+    pub traffic: &'a Traffic,
+    pub parked: &'a [Obb],
+    pub hazard: Option<&'a Hazard>,
+    /// The planner's path (hybrid only; `None` leaves the path segments out).
+    pub path: Option<PathInput<'a>>,
+    /// The reward's d0, the scale of d, metres.
+    pub d0: f32,
+}
+
+/// The vector sensor: reads a [`World`] into the layout of [`VectorConfig::segments`]. Holds only
+/// scratch buffers reused from reading to reading (and a cache of the static obstacles near the
+/// ego that no reading depends on), so readings are a function of the world alone.
+#[derive(Debug, Clone, Default)]
+pub struct Sensor {
+    statics: StaticCache,
+    objects: Objects,
+    fan: RayFan,
+}
+
+impl Sensor {
+    /// Forgets what was cached about the town (call when the town may have changed).
+    pub fn clear(&mut self) {
+        self.statics.clear();
+    }
+
+    /// Reads `world` under `cfg` into `out` (resized to the layout's length); every value lies in
+    /// [−1, 1].
+    pub fn read(&mut self, cfg: &VectorConfig, world: &World, out: &mut Vec<f32>) {
+        let variant = if world.path.is_some() { Variant::Hybrid } else { Variant::EndToEnd };
+        out.clear();
+        out.resize(cfg.len(variant), 0.0);
+        let ego = world.ego;
+        let range = cfg.range;
+        let axis = dir(ego.heading);
+        let (ego_out, rest) = out.split_at_mut(EGO_FIELDS);
+        write_ego(ego_out, ego, world.vehicle, world.prev_speed, world.dt);
+        let rest = match &world.path {
+            Some(path) => {
+                let (path_out, rest) = rest.split_at_mut(PATH_FIELDS);
+                let (wp_out, rest) = rest.split_at_mut(2 * cfg.waypoints as usize);
+                write_path(path_out, wp_out, path, world.d0, ego, range);
+                rest
+            }
+            None => rest,
+        };
+        let (obj_out, ray_out) = rest.split_at_mut(OBJECT_FIELDS * cfg.objects as usize);
+
+        self.statics.update(&world.town.statics, ego.pos, range + OCCLUDER_MARGIN);
+        self.objects.gather(ego.pos, range, world.traffic, world.parked, world.hazard);
+        let camera = ego.pos + axis * CAMERA_AHEAD;
+        self.objects.list(cfg.objects as usize, range, camera, &self.statics.boxes);
+        self.objects.write(obj_out, ego.pos, axis, axis * ego.speed, range, 2.0 * world.vehicle.max_speed);
+
+        let boxes: [&[geometry::Box2]; 2] = [&self.objects.boxes, &self.statics.boxes];
+        for (r, &u) in ray_out.chunks_exact_mut(RAY_FIELDS).zip(self.fan.directions(cfg.rays as usize)) {
+            let u = Vec2::new(axis.x * u.x - axis.y * u.y, axis.y * u.x + axis.x * u.y);
+            r[0] = obstacle_distance(ego.pos, u, range, &boxes) / range;
+            r[1] = edge_distance(&world.town.map.surface, ego.pos, u, range) / range;
+        }
+
+        for v in out.iter_mut() {
+            // NaN (a degenerate state) reads as 0.
+            *v = if v.is_nan() { 0.0 } else { v.clamp(-1.0, 1.0) };
+        }
     }
 }
 

@@ -6,4 +6,5 @@ mod map_loader;
 mod opendrive;
 mod planner;
 mod reward_ordering;
+mod sensor;
 mod world;
