@@ -12,7 +12,7 @@ pub mod whole_loop;
 pub use ingest::ingest;
 pub use many_actors::many_actors;
 pub use update::train;
-pub use whole_loop::whole_loop;
+pub use whole_loop::{loop_config, whole_loop};
 
 /// Parses `WxHxC`, e.g. `84x84x3`.
 pub fn parse_input(s: &str) -> Result<(usize, usize, usize), String> {
