@@ -4,7 +4,8 @@ One environment (``--num-envs 1``) is made with ``gymnasium.make`` (so Gymnasium
 included) and stepped from a Python loop that resets it when an episode ends; more are made with
 ``gymnasium.make_vec`` (the Rust-threaded vector env, auto-resetting). Actions are drawn uniformly
 at random beforehand (``--policy random``), or always "forward" (``--policy forward``: longer
-episodes, fewer resets). The time includes resets, observation arrays and info dicts: everything
+episodes, fewer resets). ``--observation vector`` times the vector observation (no camera
+rendered) instead of the dict. The time includes resets, observation arrays and info dicts: everything
 between the Python caller and the simulator.
 
 ``--json`` prints one JSON object on the last line of stdout:
@@ -61,8 +62,15 @@ def load() -> Optional[list]:
         return None
 
 
+def env_kwargs(args: argparse.Namespace) -> dict:
+    """The environment's keyword arguments: the vector observation has no camera to size."""
+    if args.observation == "vector":
+        return {"observation": "vector", "vehicles": args.vehicles, "route": args.route}
+    return {"camera": args.camera, "rgb": args.rgb, "vehicles": args.vehicles, "route": args.route}
+
+
 def bench_single(args: argparse.Namespace, actions: np.ndarray) -> Tuple[int, int, float, dict]:
-    env = gymnasium.make(hybrid_drive.ENV_ID, camera=args.camera, rgb=args.rgb, vehicles=args.vehicles, route=args.route)
+    env = gymnasium.make(hybrid_drive.ENV_ID, **env_kwargs(args))
     env.reset(seed=args.seed)
     sim = env.unwrapped._sim
     step, reset = env.step, env.reset
@@ -94,10 +102,7 @@ def bench_vector(args: argparse.Namespace, actions: np.ndarray) -> Tuple[int, in
         hybrid_drive.ENV_ID,
         num_envs=args.num_envs,
         num_threads=args.threads,
-        camera=args.camera,
-        rgb=args.rgb,
-        vehicles=args.vehicles,
-        route=args.route,
+        **env_kwargs(args),
     )
     envs.reset(seed=args.seed)
     sim = envs.unwrapped._sim
@@ -128,6 +133,9 @@ def main(argv: Optional[list] = None) -> int:
     p.add_argument("--threads", type=int, default=None, help="vector env threads (default: one per core)")
     p.add_argument("--camera", type=parse_size, default=(84, 84), help="WIDTHxHEIGHT or none (default 84x84)")
     p.add_argument("--rgb", action="store_true", help="RGB camera instead of gray")
+    p.add_argument(
+        "--observation", choices=["dict", "vector"], default="dict", help="vector: the vector sensor, no camera (default dict)"
+    )
     p.add_argument("--vehicles", type=int, default=50, help="moving traffic cars (default 50)")
     p.add_argument("--route", default="random", help="route name (default random)")
     p.add_argument("--policy", choices=["random", "forward"], default="random")
@@ -138,6 +146,8 @@ def main(argv: Optional[list] = None) -> int:
     args = p.parse_args(argv)
     if args.num_envs < 1:
         p.error("--num-envs must be at least 1")
+    if args.observation == "vector":
+        args.camera, args.rgb = None, False
 
     steps = max(args.steps // args.num_envs, 1) * args.num_envs
     rng = np.random.default_rng(args.seed)
@@ -149,6 +159,7 @@ def main(argv: Optional[list] = None) -> int:
     result = {
         "steps_per_sec": round(done / elapsed),
         "num_envs": args.num_envs,
+        "observation": args.observation,
         "camera": None if args.camera is None else f"{args.camera[0]}x{args.camera[1]}" + ("x3" if args.rgb else ""),
         "vehicles": args.vehicles,
         "policy": args.policy,
@@ -173,7 +184,7 @@ def main(argv: Optional[list] = None) -> int:
     else:
         print(
             f"{result['steps_per_sec']:,} steps/s: {done} steps, {episodes} episodes in {elapsed:.2f} s "
-            f"({args.num_envs} env(s), camera {result['camera']}, {args.vehicles} vehicles, policy {args.policy}; "
+            f"({args.num_envs} env(s), {args.observation} observation, camera {result['camera']}, {args.vehicles} vehicles, policy {args.policy}; "
             f"{result['cpu']}, load {load_before} -> {result['load_after']})\nprofile: {profile}"
         )
     return 0

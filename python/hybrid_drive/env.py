@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Any, Optional
+from typing import Any, Optional, Union
 
 import numpy as np
 import gymnasium
@@ -17,6 +17,16 @@ class HybridDriveEnv(gymnasium.Env):
 
     Keyword arguments (all optional):
 
+    - ``observation``: ``"dict"`` (the default: a dict of ``camera``, ``speed``, ``d`` and
+      ``path``, as below) or ``"vector"``: the vector sensor's reading (``[env.vector]``: the ego's
+      state, the planner's path and next waypoints (hybrid), the nearest visible objects, range
+      rays), one ``float32`` array in ``Box(-1, 1, (config.vector_len,))`` whose layout
+      ``config.vector_layout`` and ``config.vector_segments`` describe. It renders no camera, which
+      makes it fast: ``camera`` must be left out (or ``None``), ``rgb`` and ``path_features`` are
+      refused. The sensor is ``config``'s ``"vector"`` table when it has one (e.g.
+      ``config={"vector": {"objects": 4, "rays": 8}}``, missing fields at their defaults), else
+      the defaults; ``config``'s ``"camera"`` table is dropped. With ``"dict"``, a ``"vector"``
+      table is read by the simulator but not observed.
     - ``route``: ``"random"`` (random 50–150 m training routes, 200-step limit) or one of the
       paper's seven evaluation routes (:data:`hybrid_drive.EVAL_ROUTES`, 300-step limit).
     - ``camera``: ``(width, height)`` of the front camera in pixels (default ``(84, 84)``), or
@@ -61,7 +71,7 @@ class HybridDriveEnv(gymnasium.Env):
         #: ``(throttle, brake, steer)`` of each action index.
         self.actions = self.config.actions
 
-    def reset(self, *, seed: Optional[int] = None, options: Optional[dict] = None) -> tuple[dict, dict]:
+    def reset(self, *, seed: Optional[int] = None, options: Optional[dict] = None) -> tuple[Union[dict, np.ndarray], dict]:
         super().reset(seed=seed)
         route = route_option(options)
         if seed is None and not self._seeded:
@@ -70,7 +80,7 @@ class HybridDriveEnv(gymnasium.Env):
         self._seeded = True
         return self._sim.reset(seed, route)
 
-    def step(self, action: Any) -> tuple[dict, float, bool, bool, dict]:
+    def step(self, action: Any) -> tuple[Union[dict, np.ndarray], float, bool, bool, dict]:
         return self._sim.step(action)
 
     def render(self) -> Optional[np.ndarray]:

@@ -21,7 +21,15 @@ def sim_config(**kwargs: Any) -> SimConfig:
     """Checks the environment's keyword arguments (see :class:`hybrid_drive.HybridDriveEnv`): those
     of :class:`hybrid_drive._core.SimConfig`, whose signature (names and defaults) is their one home,
     with the Python forms it does not take turned into its own: ``camera`` any pair of numbers,
-    ``map`` any path-like, ``config`` a dict (passed as JSON), ``hazards`` any number."""
+    ``map`` any path-like, ``config`` a dict (passed as JSON), ``hazards`` any number.
+
+    ``observation="vector"`` renders no camera: a ``camera`` other than ``None`` is refused (rather
+    than silently dropped)."""
+    if kwargs.get("observation") == "vector" and kwargs.get("camera") is not None:
+        raise ValueError(
+            f"camera={kwargs['camera']!r} with observation='vector': the vector observation has no camera "
+            "(leave camera out, or use observation='dict')"
+        )
     camera = kwargs.get("camera")
     if camera is not None:
         if len(camera) != 2:
@@ -36,9 +44,13 @@ def sim_config(**kwargs: Any) -> SimConfig:
     return SimConfig(**kwargs)
 
 
-def observation_space(cfg: SimConfig) -> spaces.Dict:
-    """``camera`` (uint8, H×W×C), ``speed`` (m/s), ``d`` (m, hybrid) and ``path`` (lateral offset in m,
-    near and far heading angles in radians; with ``path_features=True``)."""
+def observation_space(cfg: SimConfig) -> spaces.Space:
+    """With ``observation="vector"``: ``Box(-1, 1, (cfg.vector_len,), float32)``, the vector sensor's
+    reading. Else the dict: ``camera`` (uint8, H×W×C), ``speed`` (m/s), ``d`` (m, hybrid) and
+    ``path`` (lateral offset in m, near and far heading angles in radians; with
+    ``path_features=True``)."""
+    if cfg.vector_len is not None:
+        return spaces.Box(np.float32(-1.0), np.float32(1.0), shape=(cfg.vector_len,), dtype=np.float32)
     dist = np.float32(cfg.distance_max)
     angle = np.float32(math.pi)
     parts: dict[str, Any] = {}

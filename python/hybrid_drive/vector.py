@@ -19,7 +19,8 @@ class HybridDriveVectorEnv(VectorEnv):
     with the GIL released.
 
     Observations, rewards, terminations, truncations and each ``info`` key come as NumPy arrays
-    with the environments along the first axis (``info["collision"]`` as indices into
+    with the environments along the first axis (``observation="vector"``: one ``(num_envs,
+    vector_len)`` ``float32`` array) (``info["collision"]`` as indices into
     :data:`hybrid_drive.COLLISION_KINDS`, 0 meaning none); there is no per-environment Python
     object.
 
@@ -63,7 +64,7 @@ class HybridDriveVectorEnv(VectorEnv):
         *,
         seed: Union[int, Sequence[int], None] = None,
         options: Optional[dict] = None,
-    ) -> tuple[dict, dict]:
+    ) -> tuple[Union[dict, np.ndarray], dict]:
         if seed is None or isinstance(seed, (int, np.integer)):
             super().reset(seed=None if seed is None else int(seed))
         route = route_option(options)
@@ -79,7 +80,7 @@ class HybridDriveVectorEnv(VectorEnv):
         self._seeded = True
         return self._sim.reset(seeds, route)
 
-    def step(self, actions: Any) -> tuple[dict, np.ndarray, np.ndarray, np.ndarray, dict]:
+    def step(self, actions: Any) -> tuple[Union[dict, np.ndarray], np.ndarray, np.ndarray, np.ndarray, dict]:
         return self._sim.step(np.asarray(actions, dtype=np.int64))
 
     def render(self) -> Optional[tuple[np.ndarray, ...]]:

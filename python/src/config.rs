@@ -1,5 +1,5 @@
-//! `SimConfig`: what a Python user asked for (map, route, camera, variant, action set, config
-//! overrides), checked once and turned into what `sim_core` needs: the town, the `EnvConfig`, the
+//! `SimConfig`: what a Python user asked for (map, route, observation, camera, variant, action set,
+//! config overrides), checked once and turned into what `sim_core` needs: the town, the `EnvConfig`, the
 //! scenario and the action set. Every error names the bad value and what would be valid.
 
 use std::path::PathBuf;
@@ -11,6 +11,7 @@ use sim_core::actions::ActionSet;
 use sim_core::camera::{BirdsEye, BirdsEyeConfig, CameraConfig};
 use sim_core::config::{EnvConfig, Variant};
 use sim_core::scenario::{EvalRoute, Scenario, eval_route};
+use sim_core::sensor::VectorConfig;
 use sim_core::town::Town;
 use sim_core::vehicle::Action;
 
@@ -29,6 +30,10 @@ pub fn parse_route(name: &str) -> PyResult<(&'static str, Scenario)> {
         .ok_or_else(|| PyValueError::new_err(format!("unknown route {name:?}: expected one of {}", route_names().join(", "))))
 }
 
+/// The observations `observation=` names: `dict` (camera, speed, d, path: a dict of arrays) and
+/// `vector` (the vector sensor's reading, `[env.vector]`: one flat array, no camera).
+pub const OBSERVATIONS: [&str; 2] = ["dict", "vector"];
+
 /// A checked environment configuration, shared by `Sim`, `VecSim` and `reference_rollout`.
 #[pyclass(module = "hybrid_drive._core", frozen)]
 #[derive(Debug)]
@@ -40,6 +45,9 @@ pub struct SimConfig {
     pub actions: &'static [Action],
     /// Whether observations carry the planner's path features (hybrid only).
     pub path_features: bool,
+    /// Whether the observation is the vector sensor's reading (`observation="vector"`) rather
+    /// than the dict.
+    pub vector: bool,
     pub birdseye: BirdsEye,
     birdseye_size: u32,
     map: Option<PathBuf>,
@@ -50,10 +58,13 @@ impl SimConfig {
     /// `camera` is `(width, height)` or `None` (no image); `config` is a JSON object of
     /// `EnvConfig` fields (the `learner config` `[env]` table) applied before the other arguments;
     /// `hazards` is the probability that an episode gets a hazard (`[env.hazards] rate`; kinds
-    /// and ranges through `config`).
+    /// and ranges through `config`). `observation="vector"` observes the vector sensor instead
+    /// of the dict: `config`'s `vector` table if it has one, else the sensor's defaults, and no
+    /// camera (`camera` is ignored, `config`'s `camera` table dropped: nothing is rendered).
     #[new]
     #[pyo3(signature = (*, map=None, route="random", camera=Some((84, 84)), rgb=false, variant="hybrid", vehicles=None,
-                        parked_cars=None, path_features=false, action_set="paper6", config=None, birdseye_size=256, hazards=None))]
+                        parked_cars=None, path_features=false, action_set="paper6", config=None, birdseye_size=256, hazards=None,
+                        observation="dict"))]
     #[allow(clippy::too_many_arguments)] // Python keyword arguments, all optional.
     fn new(
         map: Option<PathBuf>,
@@ -68,6 +79,7 @@ impl SimConfig {
         config: Option<&str>,
         birdseye_size: u32,
         hazards: Option<f32>,
+        observation: &str,
     ) -> PyResult<Self> {
         let mut env: EnvConfig = match config {
             None => EnvConfig::default(),
@@ -78,7 +90,30 @@ impl SimConfig {
             "end_to_end" => Variant::EndToEnd,
             other => return Err(PyValueError::new_err(format!("unknown variant {other:?}: expected \"hybrid\" or \"end_to_end\""))),
         };
-        env.camera = camera.map(|(width, height)| CameraConfig { width, height, rgb, ..env.camera.clone().unwrap_or_default() });
+        let vector = match observation {
+            "dict" => false,
+            "vector" => true,
+            other => {
+                return Err(PyValueError::new_err(format!(
+                    "unknown observation {other:?}: expected one of {}",
+                    OBSERVATIONS.map(|o| format!("{o:?}")).join(", ")
+                )));
+            }
+        };
+        if vector {
+            if rgb {
+                return Err(PyValueError::new_err("rgb=True needs a camera: observation=\"vector\" renders none"));
+            }
+            if path_features {
+                return Err(PyValueError::new_err(
+                    "path_features=True is for the dict observation: observation=\"vector\" holds the planner's path already (hybrid)",
+                ));
+            }
+            env.camera = None;
+            env.vector = Some(env.vector.take().unwrap_or_default());
+        } else {
+            env.camera = camera.map(|(width, height)| CameraConfig { width, height, rgb, ..env.camera.clone().unwrap_or_default() });
+        }
         if let Some(n) = vehicles {
             env.traffic.vehicles = n;
         }
@@ -108,7 +143,7 @@ impl SimConfig {
                 "route {route:?} needs the default town's roads, which {on} lacks: use route=\"random\" on other maps"
             )));
         }
-        Ok(Self { town, env, scenario, route, actions: set.actions(), path_features, birdseye, birdseye_size, map })
+        Ok(Self { town, env, scenario, route, actions: set.actions(), path_features, vector, birdseye, birdseye_size, map })
     }
 
     /// `(height, width, channels)` of the camera observation (channels × `stack` frames), or
@@ -116,6 +151,33 @@ impl SimConfig {
     #[getter]
     fn camera_shape(&self) -> Option<(u32, u32, usize)> {
         self.env.camera.as_ref().map(|c| (c.height, c.width, c.stacked_channels()))
+    }
+
+    /// `"dict"` or `"vector"` (see `observation=`).
+    #[getter]
+    fn observation(&self) -> &'static str {
+        if self.vector { OBSERVATIONS[1] } else { OBSERVATIONS[0] }
+    }
+
+    /// Values in the vector observation (`[env.vector]`'s layout for this variant), or `None`
+    /// with the dict observation.
+    #[getter]
+    fn vector_len(&self) -> Option<usize> {
+        self.vector_config().map(|v| v.len(self.env.variant))
+    }
+
+    /// The vector observation's layout in words (version and segments, as checkpoints record it,
+    /// e.g. `vector/1 ego:1x3 path:1x4 ...`), or `None` with the dict observation.
+    #[getter]
+    fn vector_layout(&self) -> Option<String> {
+        self.vector_config().map(|v| v.describe(self.env.variant))
+    }
+
+    /// The vector observation's segments, first to last: `(name, count, fields)`, `count × fields`
+    /// values each; empty with the dict observation.
+    #[getter]
+    fn vector_segments(&self) -> Vec<(&'static str, usize, usize)> {
+        self.vector_config().map(|v| v.segments(self.env.variant).iter().map(|s| (s.name, s.count, s.fields)).collect()).unwrap_or_default()
     }
 
     /// The highest speed the ego vehicle reaches, m/s.
@@ -184,9 +246,10 @@ impl SimConfig {
 
     fn __repr__(&self) -> String {
         format!(
-            "SimConfig(route={:?}, variant={:?}, camera={:?}, map={:?})",
+            "SimConfig(route={:?}, variant={:?}, observation={:?}, camera={:?}, map={:?})",
             self.route,
             self.variant(),
+            self.observation(),
             self.camera_shape(),
             self.map.as_ref().map(|p| p.display().to_string())
         )
@@ -194,6 +257,11 @@ impl SimConfig {
 }
 
 impl SimConfig {
+    /// The vector sensor's configuration, with the vector observation.
+    fn vector_config(&self) -> Option<&VectorConfig> {
+        self.env.vector.as_ref().filter(|_| self.vector)
+    }
+
     /// This configuration on another route (for `reset(options={"route": ...})`).
     pub fn scenario_named(&self, name: &str) -> PyResult<(&'static str, Scenario)> {
         let (route, scenario) = parse_route(name)?;

@@ -1,5 +1,6 @@
 //! What one environment's observation and diagnostics look like in Python: a dict of NumPy arrays
-//! (the camera image handed over without a copy) and an info dict of plain values.
+//! (the camera image handed over without a copy) or the vector sensor's reading (one `float32`
+//! array, also without a copy), and an info dict of plain values.
 
 use numpy::ndarray::Array3;
 use numpy::{PyArray, PyArray1, PyArray3};
@@ -38,8 +39,13 @@ pub fn image_array(py: Python<'_>, image: Image) -> Bound<'_, PyArray3<u8>> {
     PyArray::from_owned_array(py, array)
 }
 
-/// The observation dict: `camera` (if configured), `speed`, `d` (hybrid) and `path` (if asked).
-pub fn observation<'py>(py: Python<'py>, cfg: &SimConfig, obs: Observation) -> PyResult<Bound<'py, PyDict>> {
+/// The observation: the vector sensor's reading with `observation="vector"`, else the dict of
+/// `camera` (if configured), `speed`, `d` (hybrid) and `path` (if asked).
+pub fn observation<'py>(py: Python<'py>, cfg: &SimConfig, obs: Observation) -> PyResult<Bound<'py, PyAny>> {
+    if cfg.vector {
+        let values = obs.vector.expect("observation=\"vector\" configures [env.vector]");
+        return Ok(PyArray1::from_vec(py, values).into_any());
+    }
     let dict = PyDict::new(py);
     if let Some(image) = obs.image {
         dict.set_item(intern!(py, "camera"), image_array(py, image))?;
@@ -53,7 +59,7 @@ pub fn observation<'py>(py: Python<'py>, cfg: &SimConfig, obs: Observation) -> P
     {
         dict.set_item(intern!(py, "path"), PyArray1::from_slice(py, &path))?;
     }
-    Ok(dict)
+    Ok(dict.into_any())
 }
 
 /// The info dict of a step (or of a reset: zero reward terms).

@@ -14,7 +14,8 @@ type ReferenceStep<'py> = (f32, f32, f32, f32, bool, bool, u64, Bound<'py, PyByt
 
 /// Resets a new `Env` of `cfg` with `seed` on its route and applies the action indices `actions`
 /// until they run out or the episode ends. Per step: `(reward, r_v, r_l, r_w, terminated,
-/// truncated, state_hash, camera bytes)` (empty bytes without a camera).
+/// truncated, state_hash, observation bytes)`: the camera's image, or with `observation="vector"`
+/// the vector sensor's reading as native-endian `float32` (empty bytes without either).
 #[pyfunction]
 pub fn reference_rollout<'py>(py: Python<'py>, cfg: &SimConfig, seed: u64, actions: Vec<usize>) -> PyResult<Vec<ReferenceStep<'py>>> {
     if let Some(&a) = actions.iter().find(|&&a| a >= cfg.actions.len()) {
@@ -26,8 +27,12 @@ pub fn reference_rollout<'py>(py: Python<'py>, cfg: &SimConfig, seed: u64, actio
     for a in actions {
         let r = env.step(cfg.actions[a]).map_err(env_error)?;
         let t = r.info.reward_terms;
-        let image = r.observation.image.map(|i| i.data).unwrap_or_default();
-        out.push((r.reward, t.r_v, t.r_l, t.r_w, r.terminated, r.truncated, env.state_hash(), PyBytes::new(py, &image)));
+        let bytes = match (r.observation.image, r.observation.vector) {
+            (_, Some(v)) if cfg.vector => v.iter().flat_map(|x| x.to_ne_bytes()).collect(),
+            (Some(image), _) => image.data,
+            _ => Vec::new(),
+        };
+        out.push((r.reward, t.r_v, t.r_l, t.r_w, r.terminated, r.truncated, env.state_hash(), PyBytes::new(py, &bytes)));
         if r.terminated || r.truncated {
             break;
         }

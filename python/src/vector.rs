@@ -1,7 +1,7 @@
 //! `VecSim`: N environments stepped together on threads (`pool::Stepper`) with the GIL released,
 //! for `hybrid_drive.HybridDriveVectorEnv`. Each call returns batched NumPy arrays: the cameras
-//! are copied once into one (N, H, W, C) buffer that NumPy then owns, with no per-environment
-//! Python object.
+//! (or, with `observation="vector"`, the vector sensor's readings) are copied once into one
+//! (N, H, W, C) (or (N, len)) buffer that NumPy then owns, with no per-environment Python object.
 //!
 //! Auto-reset follows Gymnasium's `NEXT_STEP` mode: the step that ends an episode returns its last
 //! observation; the next `step` resets that environment (its action is ignored) and returns the new
@@ -158,10 +158,20 @@ impl VecSim {
         })
     }
 
-    /// The batched observation dict: `camera` (N, H, W, C), `speed` (N, 1), `d` (N, 1), `path` (N, 3).
-    fn observations<'py>(&self, py: Python<'py>, rows: &[Outcome]) -> PyResult<Bound<'py, PyDict>> {
+    /// The batched observation: with `observation="vector"` the readings as one (N, len) array,
+    /// else the dict of `camera` (N, H, W, C), `speed` (N, 1), `d` (N, 1), `path` (N, 3).
+    fn observations<'py>(&self, py: Python<'py>, rows: &[Outcome]) -> PyResult<Bound<'py, PyAny>> {
         let cfg = self.cfg.get();
         let n = rows.len();
+        if cfg.vector {
+            let len = cfg.env.vector.as_ref().expect("observation=\"vector\" configures [env.vector]").len(cfg.env.variant);
+            let mut values = Vec::with_capacity(n * len);
+            for r in rows {
+                values.extend_from_slice(r.observation.vector.as_deref().expect("[env.vector] is configured"));
+            }
+            let array = Array2::from_shape_vec((n, len), values).expect("one reading of the layout's length per environment");
+            return Ok(PyArray::from_owned_array(py, array).into_any());
+        }
         let dict = PyDict::new(py);
         if let Some(c) = &cfg.env.camera {
             let shape = (n, c.height as usize, c.width as usize, c.stacked_channels());
@@ -183,7 +193,7 @@ impl VecSim {
             let path = rows.iter().flat_map(|r| r.observation.path.unwrap_or_default()).collect();
             dict.set_item(intern!(py, "path"), matrix(PATH_FEATURES, path))?;
         }
-        Ok(dict)
+        Ok(dict.into_any())
     }
 }
 

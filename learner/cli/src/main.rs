@@ -194,8 +194,10 @@ enum BenchCommand {
         json: bool,
     },
     /// The whole training loop: a learner in this process and N actor processes beside it,
-    /// measured for --seconds (env steps and updates per second, weight lag, the learner's idle
-    /// time, the arithmetic as a fraction of the machine's peak). `e2e` is the old name.
+    /// measured for --seconds (env steps and updates per second, samples trained per env step,
+    /// weight lag, the learner's idle time, the arithmetic as a fraction of the machine's peak).
+    /// The run configuration is the default one, or --preset's or --config's, with the options
+    /// below applied to it. `e2e` is the old name.
     #[command(alias = "e2e")]
     Loop {
         /// Actor processes (the `actor` program next to this one).
@@ -210,12 +212,26 @@ enum BenchCommand {
         /// Ingest only, no training: the actors' own rate.
         #[arg(long)]
         no_train: bool,
-        /// `ack` (batches acknowledged once in the replay log on disk) or `none`.
-        #[arg(long, default_value = "ack", value_parser = parse_durability)]
-        durability: agent::config::Durability,
-        /// The run's `[agent] precision`: auto, f32 or bf16 (AMX or AVX512-BF16).
-        #[arg(long, default_value = "auto")]
-        precision: agent::fastnet::Precision,
+        /// A named run configuration (as `learner config --preset` lists them, e.g. `paper`,
+        /// `hybrid-tuned`) instead of the default one.
+        #[arg(long, value_name = "NAME", conflicts_with = "config")]
+        preset: Option<String>,
+        /// A run configuration file (TOML, as `learner serve --config` takes; it may start from a
+        /// preset with `preset = "NAME"`) instead of the default one.
+        #[arg(long, value_name = "FILE")]
+        config: Option<PathBuf>,
+        /// `[agent] replay_ratio`: samples trained per env step the learner allows (the JSON's
+        /// `effective_replay_ratio` is what it achieved). Default: the configuration's.
+        #[arg(long, value_name = "R")]
+        replay_ratio: Option<f32>,
+        /// `ack` (batches acknowledged once in the replay log on disk) or `none`. Default: the
+        /// configuration's `[service] durability` (`ack` unless it says otherwise).
+        #[arg(long, value_parser = parse_durability)]
+        durability: Option<agent::config::Durability>,
+        /// The run's `[agent] precision`: auto, f32 or bf16 (AMX or AVX512-BF16). Default: the
+        /// configuration's (`auto` unless it says otherwise).
+        #[arg(long)]
+        precision: Option<agent::fastnet::Precision>,
         /// Print one JSON object on the last line of stdout.
         #[arg(long)]
         json: bool,
@@ -421,11 +437,30 @@ fn main() -> Result<()> {
                 print_result(&v, json);
                 Ok(())
             }
-            Command::Bench(BenchCommand::Loop { actors, envs, seconds, no_train, durability, precision, json }) => {
+            Command::Bench(BenchCommand::Loop {
+                actors,
+                envs,
+                seconds,
+                no_train,
+                preset,
+                config,
+                replay_ratio,
+                durability,
+                precision,
+                json,
+            }) => {
                 if actors == 0 || envs == 0 || !(seconds > 0.0 && seconds.is_finite()) {
                     anyhow::bail!("--actors and --envs must be at least 1 and --seconds positive");
                 }
-                let v = learner_cli::bench::whole_loop(actors, envs, seconds, !no_train, durability, precision).await?;
+                let cfg = learner_cli::bench::loop_config(
+                    preset.as_deref(),
+                    config.as_deref(),
+                    durability,
+                    precision,
+                    replay_ratio,
+                    !no_train,
+                )?;
+                let v = learner_cli::bench::whole_loop(actors, envs, seconds, !no_train, cfg).await?;
                 print_result(&v, json);
                 Ok(())
             }
@@ -453,4 +488,38 @@ fn main() -> Result<()> {
             }
         }
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn bench_loop(args: &[&str]) -> Result<BenchCommand, clap::Error> {
+        let cli = Cli::try_parse_from(["learner", "bench", "loop"].iter().chain(args))?;
+        match cli.command {
+            Command::Bench(b) => Ok(b),
+            other => panic!("parsed as {other:?}"),
+        }
+    }
+
+    #[test]
+    fn bench_loop_takes_a_preset_or_a_config_and_a_replay_ratio() {
+        let BenchCommand::Loop { preset, config, replay_ratio, durability, precision, .. } =
+            bench_loop(&["--preset", "hybrid-vector", "--actors", "1", "--replay-ratio", "1", "--seconds", "20", "--json"]).unwrap()
+        else {
+            panic!("not bench loop")
+        };
+        assert_eq!((preset.as_deref(), config, replay_ratio), (Some("hybrid-vector"), None, Some(1.0)));
+        assert_eq!((durability, precision), (None, None), "the configuration's unless given");
+        let BenchCommand::Loop { config, preset, durability, precision, .. } =
+            bench_loop(&["--config", "run.toml", "--durability", "none", "--precision", "f32"]).unwrap()
+        else {
+            panic!("not bench loop")
+        };
+        assert_eq!((config, preset), (Some(PathBuf::from("run.toml")), None));
+        assert_eq!((durability, precision), (Some(agent::config::Durability::None), Some(agent::fastnet::Precision::F32)));
+        let both = bench_loop(&["--preset", "paper", "--config", "run.toml"]).unwrap_err();
+        assert_eq!(both.kind(), clap::error::ErrorKind::ArgumentConflict);
+        assert!(bench_loop(&["--replay-ratio", "lots"]).is_err());
+    }
 }

@@ -14,4 +14,4 @@ pub use ingest::ingest;
 pub use input::{Input, parse_input};
 pub use many_actors::many_actors;
 pub use update::train;
-pub use whole_loop::whole_loop;
+pub use whole_loop::{loop_config, whole_loop};
