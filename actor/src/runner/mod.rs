@@ -29,9 +29,11 @@ pub struct TrainArgs {
     pub config: Option<PathBuf>,
     /// Start from a named configuration instead: `hybrid-tuned` (the default: the paper's hybrid
     /// agent tuned for a short CPU budget), `paper` (the paper's hybrid agent as published),
-    /// `end-to-end` (its baseline without d), `end-to-end-tuned`, or `hybrid-hazards` (the tuned
+    /// `end-to-end` (its baseline without d), `end-to-end-tuned`, `hybrid-hazards` (the tuned
     /// hybrid agent with full-authority actions, the progress reward, hazard episodes and a
-    /// stacked 64x64 camera; see `learner config --help`).
+    /// stacked 64x64 camera), `hybrid-vector` (the same seeing objects, rays and the planner's
+    /// path as numbers instead of a camera: an MLP) or `e2e-vector` (without the planner); see
+    /// `learner config --help`.
     /// A file can do the same with `preset = "NAME"`.
     #[arg(long, value_name = "NAME")]
     pub preset: Option<String>,

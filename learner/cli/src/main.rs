@@ -140,9 +140,12 @@ enum Command {
         /// `end-to-end` (its baseline: no d input, no r_w), `hybrid-tuned` (`paper` with a 48x48
         /// camera, double DQN, 3-step returns, target copies every 250 updates, ε decayed over
         /// 100k steps, and the planner's signed path features as inputs), `end-to-end-tuned`
-        /// (`end-to-end` with the same tuning) or `hybrid-hazards` (`hybrid-tuned` with the full27
+        /// (`end-to-end` with the same tuning), `hybrid-hazards` (`hybrid-tuned` with the full27
         /// actions, the progress reward, the hazard suite's episodes with hazards in half of them,
-        /// and a 64x64 60° camera stacking 4 frames). Files can start from one with `preset = "NAME"`.
+        /// and a 64x64 60° camera stacking 4 frames), `hybrid-vector` (`hybrid-hazards` with the
+        /// vector sensor instead of the camera: an MLP, batches of 256, replay ratio 8) or
+        /// `e2e-vector` (`hybrid-vector` without the planner). Files can start from one with
+        /// `preset = "NAME"`.
         #[arg(long, value_name = "NAME")]
         preset: Option<String>,
     },

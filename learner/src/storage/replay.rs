@@ -684,6 +684,28 @@ mod tests {
     }
 
     #[test]
+    fn vector_readings_are_stored_without_frames_and_sampled_with_their_transition() {
+        // A vector run: no camera (frames of 0 bytes), readings of 3 values that carry t.
+        let mut r = Replay::new(ReplayConfig { frame_bytes: 0, vector_len: 3, n_step: 2, ..cfg(100) });
+        let reading = |t: u32| vec![t as f32 / 10.0, -(t as f32) / 10.0, 0.5];
+        let steps: Vec<StepRecord<'static>> =
+            episode(0, 6, true).into_iter().map(|(_, s)| StepRecord { vector: Cow::Owned(reading(s.t)), ..s }).collect();
+        assert_eq!(r.add_steps("a", &steps), 6);
+        let s = r.sample(300).unwrap();
+        assert!(s.images.is_empty() && s.next_images.is_empty(), "no frames stored or sampled");
+        assert_eq!((s.vectors.len(), s.next_vectors.len()), (300 * 3, 300 * 3));
+        for i in 0..300 {
+            // Each reading is its own frame's (the raw speed carries t too).
+            let (t, t2) = (s.scalars[i][0] as u32, s.next_scalars[i][0] as u32);
+            assert_eq!(&s.vectors[i * 3..i * 3 + 3], reading(t).as_slice());
+            assert_eq!(&s.next_vectors[i * 3..i * 3 + 3], reading(t2).as_slice());
+            assert!(t2 == t + 2 || t2 == 6, "two-step transitions: {t} -> {t2}");
+        }
+        // The byte count is the readings' and the bookkeeping's, not a frame's.
+        assert_eq!(stored_frame_cost(&r.cfg), 3 * 4 + std::mem::size_of::<RawScalars>() as u64);
+    }
+
+    #[test]
     fn truncated_episodes_bootstrap() {
         let mut r = Replay::new(cfg(100));
         add(&mut r, &episode(0, 3, false));
