@@ -28,6 +28,9 @@ pub struct Town {
     /// The evaluation routes found in this map (by position in `EvalRoute::ALL`), searched once
     /// on first use by `scenario::eval_route` for maps whose routes are not named places.
     pub found_routes: std::sync::OnceLock<Vec<Option<[LaneMatch; 2]>>>,
+    /// How far the road's edge is, per block of the surface raster (`sensor::rays`), worked out
+    /// on the vector sensor's first use.
+    pub edge_clearance: std::sync::OnceLock<crate::sensor::rays::EdgeClearance>,
 }
 
 impl Town {
@@ -44,7 +47,16 @@ impl Town {
             }
         }
         let scene_statics = static_boxes(&map);
-        Arc::new(Self { map, graph, statics, curve_speed, connector_slot, scene_statics, found_routes: std::sync::OnceLock::new() })
+        Arc::new(Self {
+            map,
+            graph,
+            statics,
+            curve_speed,
+            connector_slot,
+            scene_statics,
+            found_routes: std::sync::OnceLock::new(),
+            edge_clearance: std::sync::OnceLock::new(),
+        })
     }
 
     /// The embedded default town.

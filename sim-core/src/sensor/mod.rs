@@ -186,14 +186,16 @@ impl Sensor {
         self.statics.update(&world.town.statics, ego.pos, range + OCCLUDER_MARGIN);
         self.objects.gather(ego.pos, range, world.traffic, world.parked, world.hazard);
         let camera = ego.pos + axis * CAMERA_AHEAD;
-        self.objects.list(cfg.objects as usize, range, camera, &self.statics.boxes);
+        self.objects.list(cfg.objects as usize, range, camera, &self.statics.near);
         self.objects.write(obj_out, ego.pos, axis, axis * ego.speed, range, 2.0 * world.vehicle.max_speed);
 
-        let boxes: [&[geometry::Box2]; 2] = [&self.objects.boxes, &self.statics.boxes];
+        let surface = &world.town.map.surface;
+        let clearance = world.town.edge_clearance.get_or_init(|| rays::EdgeClearance::new(surface));
+        let boxes: [&[geometry::Box2]; 2] = [&self.objects.boxes, &self.statics.near];
         for (r, &u) in ray_out.chunks_exact_mut(RAY_FIELDS).zip(self.fan.directions(cfg.rays as usize)) {
             let u = Vec2::new(axis.x * u.x - axis.y * u.y, axis.y * u.x + axis.x * u.y);
             r[0] = obstacle_distance(ego.pos, u, range, &boxes) / range;
-            r[1] = edge_distance(&world.town.map.surface, ego.pos, u, range) / range;
+            r[1] = edge_distance(surface, clearance, ego.pos, u, range) / range;
         }
 
         for v in out.iter_mut() {

@@ -22,28 +22,34 @@ pub struct StaticCache {
     /// Where the boxes were gathered and for what reach; `None` before the first gathering.
     at: Option<(Vec2, f32)>,
     ids: Vec<u32>,
-    pub boxes: Vec<Box2>,
+    boxes: Vec<Box2>,
+    /// The cached boxes that reach within `reach` of the ego, this reading.
+    pub near: Vec<Box2>,
 }
 
 impl StaticCache {
-    /// Makes sure the cache holds every obstacle within `reach` of `centre`.
+    /// Gathers into `near` the obstacles whose bounding circles reach within `reach` of
+    /// `centre`, from the cache (refreshed first if `centre` has left it).
     pub fn update(&mut self, grid: &StaticGrid, centre: Vec2, reach: f32) {
-        if let Some((at, r)) = self.at
-            && r == reach
-            && at.distance_squared(centre) <= MARGIN * MARGIN
-        {
-            return;
+        let fresh = self.at.is_some_and(|(at, r)| r == reach && at.distance_squared(centre) <= MARGIN * MARGIN);
+        if !fresh {
+            let half = Vec2::splat(reach + MARGIN);
+            grid.obstacles_in(centre - half, centre + half, &mut self.ids);
+            self.boxes.clear();
+            self.boxes.extend(self.ids.iter().map(|&id| Box2::new(&grid.obstacle(id).0)));
+            self.at = Some((centre, reach));
         }
-        let half = Vec2::splat(reach + MARGIN);
-        grid.obstacles_in(centre - half, centre + half, &mut self.ids);
-        self.boxes.clear();
-        self.boxes.extend(self.ids.iter().map(|&id| Box2::new(&grid.obstacle(id).0)));
-        self.at = Some((centre, reach));
+        self.near.clear();
+        self.near.extend(self.boxes.iter().filter(|b| {
+            let r = reach + b.radius;
+            b.centre.distance_squared(centre) <= r * r
+        }));
     }
 
     /// Forgets the gathered boxes (another town).
     pub fn clear(&mut self) {
         self.at = None;
         self.boxes.clear();
+        self.near.clear();
     }
 }

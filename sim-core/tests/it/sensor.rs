@@ -214,3 +214,22 @@ fn a_ray_reads_a_parked_car_straight_ahead() {
     let left_edge = rays[2 * 4 + 1] * 50.0;
     assert!(left_edge > 5.0 && left_edge < 12.0, "{left_edge}");
 }
+
+#[test]
+fn the_birdseye_view_shows_the_reading() {
+    use sim_core::camera::{BirdsEye, BirdsEyeConfig};
+    let mut cfg = config(Variant::Hybrid);
+    cfg.traffic.vehicles = 50;
+    let mut env = Env::new(Town::default_town(), cfg).unwrap();
+    let expert = Expert::default();
+    for _ in 0..20 {
+        env.step(expert.act(&env)).unwrap();
+    }
+    let view = BirdsEye::new(&BirdsEyeConfig::default()).unwrap();
+    let plain = env.birdseye(&view);
+    let mut drawn = plain.clone();
+    let vc = env.cfg.vector.clone().unwrap();
+    view.draw_vector(&mut drawn, env.ego.pos, env.ego.pos, env.ego.heading, env.vector().unwrap(), &vc, env.cfg.variant);
+    let changed = plain.data.iter().zip(&drawn.data).filter(|(a, b)| a != b).count();
+    assert!(changed > 100, "{changed} bytes drawn");
+}
