@@ -264,15 +264,17 @@ impl RunConfig {
         let invalid = |(field, message): (String, String)| ConfigError::Invalid { path: origin.into(), field, message };
         // Parsed alone first, so that unknown fields and wrong types are reported with their line.
         let own: Self = toml::from_str(text).map_err(parse_error)?;
-        let cfg = match &own.preset {
-            None => own,
+        let table = toml::from_str::<toml::Table>(text).map_err(parse_error)?;
+        let (mut cfg, table) = match &own.preset {
+            None => (own, table),
             Some(name) => {
                 let base = Self::preset(name).map_err(|m| invalid(("preset".into(), m)))?;
                 let mut merged = toml::Table::try_from(&base).expect("a configuration converts to a TOML table");
-                merge_tables(&mut merged, toml::from_str::<toml::Table>(text).map_err(parse_error)?);
-                merged.try_into().map_err(parse_error)?
+                merge_tables(&mut merged, table);
+                (merged.clone().try_into().map_err(parse_error)?, merged)
             }
         };
+        camera_as_written(&mut cfg.env, table.get("env").and_then(toml::Value::as_table));
         cfg.validate().map_err(invalid)?;
         Ok(cfg)
     }
@@ -539,6 +541,23 @@ impl RunConfig {
 }
 
 /// Overlays `top` on `base`: tables merge key by key, any other value replaces.
+/// `[env]` as TOML text (what the learner sends its actors) read as [`RunConfig::from_toml`]
+/// reads it: with the vector sensor and no `camera` table, no camera.
+pub fn env_from_toml(text: &str) -> Result<EnvConfig, toml::de::Error> {
+    let mut env: EnvConfig = toml::from_str(text)?;
+    camera_as_written(&mut env, Some(&toml::from_str::<toml::Table>(text)?));
+    Ok(env)
+}
+
+/// With the vector sensor, an `[env]` without a `camera` table has no camera (as a configuration
+/// without one is written); `EnvConfig`'s default camera is for files without the sensor, which
+/// need one.
+fn camera_as_written(env: &mut EnvConfig, table: Option<&toml::Table>) {
+    if env.vector.is_some() && !table.is_some_and(|t| t.contains_key("camera")) {
+        env.camera = None;
+    }
+}
+
 fn merge_tables(base: &mut toml::Table, top: toml::Table) {
     for (key, value) in top {
         match (base.get_mut(&key), value) {
@@ -560,6 +579,29 @@ mod tests {
         cfg.validate().unwrap();
         let back = RunConfig::from_toml(&cfg.to_toml(), "roundtrip").unwrap();
         assert_eq!(back, cfg);
+    }
+
+    #[test]
+    fn a_configuration_without_a_camera_reads_back_without_one() {
+        for name in ["hybrid-vector", "e2e-vector"] {
+            let cfg = RunConfig::preset(name).unwrap();
+            assert_eq!(RunConfig::from_toml(&cfg.to_toml(), "roundtrip").unwrap(), cfg, "{name}");
+            let text = format!("preset = \"{name}\"\n[env.vector]\nobjects = 4\n[agent]\nhidden = 16\n");
+            let tiny = RunConfig::from_toml(&text, "tiny.toml").unwrap();
+            assert!(tiny.env.camera.is_none() && tiny.net_shape().channels == 0, "{name}: {tiny:?}");
+            assert_eq!(RunConfig::from_toml(&tiny.to_toml(), "back").unwrap(), tiny, "{name}");
+        }
+        // A camera asked for beside the sensor is kept; without the sensor the default camera stays.
+        let both = RunConfig::from_toml("preset = \"hybrid-vector\"\n[env.camera]\nwidth = 32\n", "both.toml").unwrap();
+        assert_eq!(both.env.camera.as_ref().map(|c| c.width), Some(32));
+        let with_vector = RunConfig::from_toml("preset = \"hybrid-tuned\"\n[env.vector]\nrays = 8\n", "tuned.toml").unwrap();
+        assert!(with_vector.env.camera.is_some() && with_vector.env.vector.is_some());
+        assert!(RunConfig::from_toml("[agent]\nhidden = 16\n", "plain.toml").unwrap().env.camera.is_some());
+        // The [env] table the learner sends its actors reads back the same.
+        let cfg = RunConfig::preset("hybrid-vector").unwrap();
+        assert_eq!(env_from_toml(&toml::to_string(&cfg.env).unwrap()).unwrap(), cfg.env);
+        let tuned = RunConfig::preset("hybrid-tuned").unwrap();
+        assert_eq!(env_from_toml(&toml::to_string(&tuned.env).unwrap()).unwrap(), tuned.env);
     }
 
     #[test]

@@ -31,7 +31,6 @@ use proto::client::{ACTOR_ID_HEADER, Client, connect_to as connect};
 use proto::v1 as pb;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
-use sim_core::config::EnvConfig;
 
 use crate::sampling::batch_split::{Limits, fits, split};
 use crate::sampling::outbox::{Link, Outbox};
@@ -169,7 +168,7 @@ pub async fn run(opts: ActorOptions) -> Result<()> {
     );
     link.note_run_env_steps(reg.run_env_steps);
     link.actor_id.lock().expect("actor id lock").clone_from(&reg.actor_id);
-    let env_cfg: EnvConfig = toml::from_str(&reg.env_config_toml).context("the learner's [env] configuration")?;
+    let env_cfg = agent::config::env_from_toml(&reg.env_config_toml).context("the learner's [env] configuration")?;
     let agent_cfg: AgentConfig = toml::from_str(&reg.agent_config_toml).context("the learner's [agent] configuration")?;
     let run_cfg = RunConfig { env: env_cfg, agent: agent_cfg, ..RunConfig::default() };
     // Built once, before stepping: a map that does not arrive whole or does not build stops the

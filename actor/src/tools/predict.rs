@@ -273,6 +273,8 @@ mod tests {
             frame: Some(frame.to_path_buf()),
             speed: Some(5.0),
             d,
+            save_vector: None,
+            vector: None,
             path: None,
             json: true,
         }
