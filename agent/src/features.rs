@@ -92,4 +92,28 @@ mod tests {
         let e2e = RunConfig::preset("end-to-end-tuned").unwrap();
         close(scalar_features(&e2e, &raw), &[1.0]);
     }
+
+    #[test]
+    fn a_vector_run_sees_the_reading_and_an_end_to_end_one_drops_the_planners_segments() {
+        let raw = raw_scalars(13.889, 4.0, [1.75, -0.2, 0.6]);
+        let hv = RunConfig::preset("hybrid-vector").unwrap();
+        let ev = RunConfig::preset("e2e-vector").unwrap();
+        let hybrid_reading: Vec<f32> = (0..hv.vector_len()).map(|k| k as f32 / 1000.0).collect();
+        let mut out = Vec::new();
+        push_network_inputs(&hv, &raw, &hybrid_reading, &mut out);
+        assert_eq!(out, hybrid_reading, "the reading as is: it holds speed, d and the path already");
+        // An end-to-end agent driving a hybrid environment (evaluation) sees ego, objects, rays.
+        out.clear();
+        push_network_inputs(&ev, &raw, &hybrid_reading, &mut out);
+        assert_eq!(out.len(), ev.scalar_inputs());
+        let planner = hv.vector_len() - ev.vector_len();
+        let ego = sim_core::sensor::EGO_FIELDS;
+        assert_eq!(&out[..ego], &hybrid_reading[..ego]);
+        assert_eq!(&out[ego..], &hybrid_reading[ego + planner..]);
+        // Its own environment's reading goes in as is.
+        let own: Vec<f32> = hybrid_reading[..ev.vector_len()].to_vec();
+        out.clear();
+        push_network_inputs(&ev, &raw, &own, &mut out);
+        assert_eq!(out, own);
+    }
 }
