@@ -593,7 +593,8 @@ fn restarted_exploration(w: &World) -> anyhow::Result<f64> {
 }
 
 fn audit(dir: &Path) -> anyhow::Result<(u64, u64, u64)> {
-    let (entries, first) = learner::storage::replay_log::inventory(&dir.join("run"), frame_bytes())?;
+    let (entries, first) =
+        learner::storage::replay_log::inventory(&dir.join("run"), learner::storage::replay_log::StepShape::frames(frame_bytes()))?;
     let by_position: BTreeMap<u64, &learner::storage::replay_log::Entry> = entries.iter().map(|e| (e.position, e)).collect();
     let (mut acked, mut lost, mut evicted) = (0u64, 0u64, 0u64);
     for k in 0..ACTORS {

@@ -235,7 +235,7 @@ fn observe_vector(agent: &GreedyAgent, path: &Path) -> Result<Observed> {
     if vector.len() != cfg.vector_len() {
         bail!("--vector {}: {} values, but the checkpoint's layout `{layout}` has {}", path.display(), vector.len(), cfg.vector_len());
     }
-    if let Some((k, v)) = vector.iter().enumerate().find(|(_, v)| !(v.abs() <= 1.0)) {
+    if let Some((k, v)) = vector.iter().enumerate().find(|(_, v)| !v.is_finite() || v.abs() > 1.0) {
         bail!("--vector {}: value {k} is {v}; the vector sensor's values lie in [-1, 1]", path.display());
     }
     Ok(Observed { image: Vec::new(), raw: RawScalars::default(), vector, source: json!({"vector": path}) })

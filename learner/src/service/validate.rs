@@ -103,7 +103,7 @@ pub fn check(x: &Expect, actor: &ActorRecord, b: &pb::ExperienceBatch) -> Result
             };
             return invalid(format!("step {i}: vector has {} values; {run}", obs.vector.len()));
         }
-        if let Some((k, v)) = obs.vector.iter().enumerate().find(|(_, v)| !(v.abs() <= x.bounds.vector)) {
+        if let Some((k, v)) = obs.vector.iter().enumerate().find(|(_, v)| !v.is_finite() || v.abs() > x.bounds.vector) {
             return invalid(format!(
                 "step {i}: vector value {k} is {v}; the vector sensor's values are finite and within [-{b}, {b}]",
                 b = x.bounds.vector
