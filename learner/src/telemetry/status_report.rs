@@ -291,6 +291,7 @@ pub const NOT_EXPORTED: &[(&str, &str)] = &[
     ("/run_id", "text: the run is the scrape target's label"),
     ("/variant", "text"),
     ("/replay_capacity", "configuration, not a measurement"),
+    ("/replay_bytes_per_transition", "learner_replay_bytes divided by learner_replay_size"),
     ("/episodes/window", "configuration (service.stats_window)"),
     ("/reliability/durability", "text"),
     ("/reliability/replay_log_bytes", "shown by `learner status`; no dashboard uses it"),
