@@ -110,7 +110,8 @@ impl RunConfig {
         if matches!(name, "hybrid-vector" | "e2e-vector") {
             // docs/MODEL.md, "The vector observation": no camera, so the network is an MLP whose
             // update costs a few hundred times less than the camera network's; the learner can
-            // afford DQN's replay ratio and larger batches (docs/PERFORMANCE.md).
+            // afford DQN's replay ratio and larger batches (docs/PERFORMANCE.md). 8 is DQN's: one
+            // seed at 2, 4 and 8 did not tell them apart (docs/RESULTS.md, "Seeing objects").
             cfg.env.camera = None;
             cfg.env.vector = Some(VectorConfig::default());
             let a = &mut cfg.agent;

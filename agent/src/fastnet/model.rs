@@ -94,7 +94,8 @@ pub struct FastNet {
 }
 
 impl FastNet {
-    /// A network of `shape` using up to `threads` threads (at least 1), in f32.
+    /// A network of `shape` using up to `threads` threads (at least 1; one for a network with no
+    /// image), in f32.
     #[must_use]
     pub fn new(shape: NetShape, threads: usize) -> Self {
         Self::with_precision(shape, threads, false)
@@ -124,7 +125,10 @@ impl FastNet {
             shape,
             slots: DenseSlots::of(&shape),
             geoms,
-            threads: threads.max(1),
+            // A multilayer perceptron's products are too small for a second thread to pay for its
+            // hand-offs: the update runs faster on one (docs/PERFORMANCE.md, "The multilayer
+            // perceptron"), and the other core is the actors'.
+            threads: if shape.has_image() { threads.max(1) } else { 1 },
             batch: 0,
             parts: Vec::new(),
             x: Vec::new(),
