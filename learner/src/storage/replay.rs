@@ -375,7 +375,9 @@ impl Replay {
         self.frames[slot * fb..(slot + 1) * fb].copy_from_slice(image);
         self.frame_scalars[slot] = scalars;
         let vl = self.cfg.vector_len;
-        self.frame_vectors[slot * vl..(slot + 1) * vl].copy_from_slice(vector);
+        if vl > 0 {
+            self.frame_vectors[slot * vl..(slot + 1) * vl].copy_from_slice(vector);
+        }
         // The frame that lived in this slot is gone: so is the transition that observed it,
         // wherever it sits in the FIFO (streams interleave, so not necessarily at the front).
         let observer = std::mem::take(&mut self.observed_by[slot]);
@@ -586,8 +588,12 @@ impl Replay {
             }
             out.scalars.push(self.frame(t.obs).1);
             out.next_scalars.push(self.frame(t.next).1);
-            out.vectors.extend_from_slice(self.vector_of(t.obs));
-            out.next_vectors.extend_from_slice(self.vector_of(t.next));
+            if self.cfg.vector_len > 0 {
+                // Without the sensor there is nothing to copy (and the camera path's sampling
+                // costs what it did before the sensor: scripts/bench-check.sh).
+                out.vectors.extend_from_slice(self.vector_of(t.obs));
+                out.next_vectors.extend_from_slice(self.vector_of(t.next));
+            }
             out.actions.push(t.action);
             out.rewards.push(t.reward);
             out.discounts.push(t.discount);
