@@ -123,7 +123,7 @@ pub fn train(
         "double_dqn": agent.double_dqn,
         "threads": threads,
         // What the network runs on: one thread for a network with no image (`FastNet::new`).
-        "network_threads": FastNet::new(shape, threads).threads(),
+        "network_threads": paths[0].1.threads(),
         "forward_batch": forward_batch,
         "forward_mflop_per_image": f / 1e6,
         "peak_gflops_1_thread": peak_1,
