@@ -13,6 +13,8 @@
 //! from 0.5 s to 30 s (±25 %) until a batch is acknowledged again: never a tight reconnect loop.
 
 pub mod batch_split;
+pub mod demonstrator;
+pub mod explore;
 pub mod outbox;
 pub mod stepper;
 pub mod town;
@@ -58,6 +60,9 @@ pub struct ActorOptions {
     pub ack_log: Option<PathBuf>,
     /// Exit when standard input closes (the parent that started this actor died).
     pub exit_with_stdin: bool,
+    /// Drive with this demonstrator instead of the learner's weights, and send demonstrations
+    /// (`--demonstrate`).
+    pub demonstrate: Option<crate::sampling::demonstrator::Demonstrator>,
 }
 
 /// Registers, retrying with exponential backoff (0.5 s doubling to 30 s, ±25 % jitter) until it
@@ -84,6 +89,7 @@ async fn register(
                     envs: envs as u32,
                     protocol: proto::v1::PROTOCOL,
                     vector_layout: sim_core::sensor::LAYOUT_VERSION.into(),
+                    demonstrator: opts.demonstrate.map(|d| d.name().to_owned()).unwrap_or_default(),
                 })
                 .await
                 .map_err(|s| anyhow::anyhow!("register: {}", s.message()))?
@@ -181,15 +187,19 @@ pub async fn run(opts: ActorOptions) -> Result<()> {
         let link = link.clone();
         let cfg = run_cfg.clone();
         let (envs, seed, index, stream) = (opts.envs, opts.seed, reg.actor_index, reg.episode_stream);
-        let (batch_steps, buffer_steps) = (opts.batch_steps, opts.buffer_steps);
+        let (batch_steps, buffer_steps, demonstrate) = (opts.batch_steps, opts.buffer_steps, opts.demonstrate);
         std::thread::Builder::new().name("step".into()).spawn(move || {
-            let r = step_loop(&cfg, &town, &link, envs, seed, index, stream, batch_steps, buffer_steps);
+            let r = step_loop(&cfg, &town, &link, envs, seed, index, stream, batch_steps, buffer_steps, demonstrate);
             link.stepper_done.store(true, Ordering::SeqCst);
             r
         })?
     };
     link.connected.store(true, Ordering::SeqCst);
-    let weights = tokio::spawn(weights_loop(opts.clone(), token.clone(), link.clone(), client.clone(), run_cfg.net_shape()));
+    // A demonstrator drives without weights: it asks for none.
+    let weights = opts
+        .demonstrate
+        .is_none()
+        .then(|| tokio::spawn(weights_loop(opts.clone(), token.clone(), link.clone(), client.clone(), run_cfg.net_shape())));
     let progress = tokio::spawn(progress_loop(link.clone()));
     // Sending ends when stopped and flushed, or at the flush deadline, whatever the learner does
     // (a frozen learner holds a call open for ever).
@@ -203,7 +213,9 @@ pub async fn run(opts: ActorOptions) -> Result<()> {
         () = send_loop(&opts, &token, &link, client, reg, &mut rng, &mut ack_log) => {}
         () = flush_deadline => {}
     }
-    weights.abort();
+    if let Some(w) = weights {
+        w.abort();
+    }
     progress.abort();
     let stepped =
         tokio::task::spawn_blocking(move || stepper.join()).await?.map_err(|_| anyhow::anyhow!("the stepping thread panicked"))?;
@@ -372,6 +384,7 @@ async fn stream_batches(
             weights_version: version,
             epsilon,
             dropped_steps: dropped,
+            demonstration: opts.demonstrate.is_some(),
         };
         if tx.send(batch.clone()).await.is_err() {
             return StreamEnd::Failed;
