@@ -113,10 +113,11 @@ pub struct AgentConfig {
     pub apex_alpha: f32,
     /// Ape-X actor count N the exponents are spread over, with `per_actor_epsilon`.
     pub apex_actors: u32,
-    /// How actors explore: `epsilon` (ε-greedy: each step random with probability ε) or
-    /// `ez_greedy` (ε-z-greedy, Dabney et al. 2021: with probability ε a random action is started
-    /// and held for n steps, n drawn from a zeta (power-law) distribution with exponent `ez_mu`,
-    /// at most `ez_max_repeat`). ε is the same in both (schedule or per-actor).
+    /// How actors explore: `epsilon` or `ez_greedy`. `epsilon` is ε-greedy (each step random
+    /// with probability ε); `ez_greedy` is ε-z-greedy (Dabney et al. 2021: with probability ε a
+    /// random action is started and held for n steps, n drawn from a zeta (power-law)
+    /// distribution with exponent `ez_mu`, at most `ez_max_repeat`). ε is the same in both
+    /// (schedule or per-actor).
     pub exploration: Exploration,
     /// Exponent μ of ε-z-greedy's duration distribution, P(n) ∝ n^−μ (> 1; Dabney et al.: 2).
     pub ez_mu: f32,
