@@ -195,11 +195,12 @@ pub async fn run(opts: ActorOptions) -> Result<()> {
         })?
     };
     link.connected.store(true, Ordering::SeqCst);
-    // A demonstrator drives without weights: it asks for none.
-    let weights = opts
-        .demonstrate
-        .is_none()
-        .then(|| tokio::spawn(weights_loop(opts.clone(), token.clone(), link.clone(), client.clone(), run_cfg.net_shape())));
+    // A demonstrator drives without weights: it asks for none, and keeps pace with the run.
+    let weights = if opts.demonstrate.is_some() {
+        tokio::spawn(pace_loop(opts.clone(), token.clone(), link.clone(), client.clone()))
+    } else {
+        tokio::spawn(weights_loop(opts.clone(), token.clone(), link.clone(), client.clone(), run_cfg.net_shape()))
+    };
     let progress = tokio::spawn(progress_loop(link.clone()));
     // Sending ends when stopped and flushed, or at the flush deadline, whatever the learner does
     // (a frozen learner holds a call open for ever).
@@ -213,9 +214,7 @@ pub async fn run(opts: ActorOptions) -> Result<()> {
         () = send_loop(&opts, &token, &link, client, reg, &mut rng, &mut ack_log) => {}
         () = flush_deadline => {}
     }
-    if let Some(w) = weights {
-        w.abort();
-    }
+    weights.abort();
     progress.abort();
     let stepped =
         tokio::task::spawn_blocking(move || stepper.join()).await?.map_err(|_| anyhow::anyhow!("the stepping thread panicked"))?;
@@ -518,6 +517,35 @@ async fn weights_loop(opts: ActorOptions, token: Option<String>, link: Arc<Link>
             Err(_) => {
                 failing = true;
                 // The learner may be restarting: try a new connection next time.
+                if let Ok(c) = connect(&opts.learner, token.clone()).await {
+                    client = c;
+                }
+            }
+        }
+        sleep_unless_stopped(&link, Duration::from_secs(1)).await;
+    }
+}
+
+/// A demonstrator's pace: it needs no weights and costs no inference, so unchecked it would
+/// outrun the learning actors many times over, for demonstrations that only replace each other
+/// once the learner's partition is full. Every second it asks the learner's Status, and pauses
+/// the stepping thread while the partition is full and the run's demonstrations outnumber its
+/// learning actors' steps; until then (filling the partition, pre-training) it drives freely.
+async fn pace_loop(opts: ActorOptions, token: Option<String>, link: Arc<Link>, mut client: Client) {
+    loop {
+        if link.stop.load(Ordering::SeqCst) {
+            link.demo_pause.store(false, Ordering::SeqCst);
+            return;
+        }
+        match client.status(pb::StatusRequest {}).await {
+            Ok(st) => {
+                let st = st.into_inner();
+                let full = st.demo_replay_capacity > 0 && st.demo_replay_size >= st.demo_replay_capacity;
+                link.demo_pause.store(full && st.demo_transitions_received >= st.env_steps, Ordering::SeqCst);
+            }
+            Err(_) => {
+                // A learner away or restarting: drive (the outbox buffers) and reconnect.
+                link.demo_pause.store(false, Ordering::SeqCst);
                 if let Ok(c) = connect(&opts.learner, token.clone()).await {
                     client = c;
                 }

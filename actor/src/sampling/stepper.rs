@@ -82,6 +82,10 @@ pub fn step_loop(
     }
     let mut total_steps = 0u64;
     while !link.stop.load(Ordering::SeqCst) {
+        if teacher.is_some() && link.demo_pause.load(Ordering::SeqCst) {
+            std::thread::sleep(std::time::Duration::from_millis(50));
+            continue;
+        }
         if let Some((version, params)) = link.fresh_weights.lock().expect("weights lock").take() {
             net.set_params(params);
             link.acting_version.store(version, Ordering::SeqCst);

@@ -30,6 +30,9 @@ use crate::telemetry::records::{EpisodeRecord, derived_outcome};
 
 pub use crate::service::validate::MAX_STEPS_PER_BATCH;
 
+/// The first actor index of demonstrators (learning actors count from 0).
+pub const DEMONSTRATOR_INDEX: u32 = 1 << 16;
+
 /// The service.
 #[derive(Debug, Clone)]
 pub struct LearnerService {
@@ -75,7 +78,14 @@ impl Learner for LearnerService {
         // An actor that comes back under the same name (reconnected, or restarted) reuses its
         // record, index (and so exploration rate) included; its earlier registration ends.
         let existing = (!r.name.is_empty()).then(|| actors.iter().position(|a| a.name == r.name)).flatten();
-        let index = existing.map_or(actors.len() as u32, |k| actors[k].index);
+        // Learning actors are numbered 0, 1, … among themselves (Ape-X's per-actor ε), whenever
+        // demonstrators register; demonstrators from DEMONSTRATOR_INDEX on.
+        let demonstrator = !r.demonstrator.is_empty();
+        let fresh_index = {
+            let peers = actors.iter().filter(|a| a.demonstrator.is_empty() != demonstrator).count() as u32;
+            if demonstrator { DEMONSTRATOR_INDEX + peers } else { peers }
+        };
+        let index = existing.map_or(fresh_index, |k| actors[k].index);
         let id = format!("{}-a{}-{}", s.run_id, index, n);
         let ended = match existing {
             Some(k) => {

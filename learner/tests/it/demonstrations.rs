@@ -71,8 +71,11 @@ async fn demonstrations_come_from_demonstrators_alone() {
     let dir = tempfile::tempdir().unwrap();
     let running = start_tiny(dir.path(), |_| {}).await;
     let mut c = client(&running.addr.to_string()).await;
-    let agent = register(&mut c, "agent", "").await.unwrap();
+    // The demonstrator first: the learning actor is still index 0 (Ape-X's ε counts learning
+    // actors alone).
     let demo = register(&mut c, "teacher", "model-based-avoid").await.unwrap();
+    let agent = register(&mut c, "agent", "").await.unwrap();
+    assert_eq!((agent.actor_index, demo.actor_index), (0, learner::service::rpc::DEMONSTRATOR_INDEX));
 
     let refused = send(&mut c, vec![batch(&agent.actor_id, 1, 0, 10, true)]).await.unwrap_err();
     assert_eq!(refused.code(), Code::InvalidArgument);
@@ -90,7 +93,7 @@ async fn demonstrations_come_from_demonstrators_alone() {
     assert_eq!((st.replay_size, st.transitions_stored, st.env_steps), (9, 9, 9));
     assert_eq!((st.demo_replay_size, st.demo_transitions_stored, st.demo_transitions_received), (20, 20, 20));
     let roles: Vec<(&str, &str)> = st.actors.iter().map(|a| (a.name.as_str(), a.demonstrator.as_str())).collect();
-    assert_eq!(roles, [("agent", ""), ("teacher", "model-based-avoid")]);
+    assert_eq!(roles, [("teacher", "model-based-avoid"), ("agent", "")]);
     running.stop().await.unwrap();
 
     let dir = tempfile::tempdir().unwrap();
