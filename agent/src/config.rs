@@ -423,7 +423,10 @@ impl RunConfig {
             return bad("ez_max_repeat", format!("{} must be 1..=10000", a.ez_max_repeat));
         }
         if a.demo_capacity != 0 && a.demo_capacity < a.batch_size {
-            return bad("demo_capacity", format!("{} must be 0 (no demonstrations) or at least batch_size ({})", a.demo_capacity, a.batch_size));
+            return bad(
+                "demo_capacity",
+                format!("{} must be 0 (no demonstrations) or at least batch_size ({})", a.demo_capacity, a.batch_size),
+            );
         }
         if !(a.demo_margin.is_finite() && a.demo_margin >= 0.0) {
             return bad("demo_margin", format!("{} must be >= 0", a.demo_margin));

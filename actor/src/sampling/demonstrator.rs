@@ -47,9 +47,10 @@ impl Demonstrator {
 
     /// The demonstrator named `name`.
     pub fn from_name(name: &str) -> Result<Self> {
-        Self::ALL.into_iter().find(|d| d.name() == name).ok_or_else(|| {
-            anyhow::anyhow!("unknown demonstrator `{name}`: expected {}", Self::ALL.map(Self::name).join(" or "))
-        })
+        Self::ALL
+            .into_iter()
+            .find(|d| d.name() == name)
+            .ok_or_else(|| anyhow::anyhow!("unknown demonstrator `{name}`: expected {}", Self::ALL.map(Self::name).join(" or ")))
     }
 
     fn expert(self) -> Expert {

@@ -58,10 +58,13 @@ fn zeta_cdf(mu: f32, max: u32) -> Vec<f64> {
     let weights: Vec<f64> = (1..=max.max(1)).map(|n| f64::from(n).powf(-f64::from(mu))).collect();
     let total: f64 = weights.iter().sum();
     let mut acc = 0.0;
-    let mut cdf: Vec<f64> = weights.iter().map(|w| {
-        acc += w / total;
-        acc
-    }).collect();
+    let mut cdf: Vec<f64> = weights
+        .iter()
+        .map(|w| {
+            acc += w / total;
+            acc
+        })
+        .collect();
     *cdf.last_mut().expect("at least one duration") = 1.0;
     cdf
 }

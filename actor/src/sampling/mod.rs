@@ -527,10 +527,10 @@ async fn weights_loop(opts: ActorOptions, token: Option<String>, link: Arc<Link>
 }
 
 /// A demonstrator's pace: it needs no weights and costs no inference, so unchecked it would
-/// outrun the learning actors many times over, for demonstrations that only replace each other
-/// once the learner's partition is full. Every second it asks the learner's Status, and pauses
-/// the stepping thread while the partition is full and the run's demonstrations outnumber its
-/// learning actors' steps; until then (filling the partition, pre-training) it drives freely.
+/// outrun the learning actors many times over, on the cores the learner and they need. Every
+/// second it asks the learner's Status and pauses the stepping thread while the run's
+/// demonstrations (all demonstrators') have caught up with its learning actors' steps, except
+/// while the learner waits for demonstrations to pre-train on (`agent.demo_pretrain_updates`).
 async fn pace_loop(opts: ActorOptions, token: Option<String>, link: Arc<Link>, mut client: Client) {
     loop {
         if link.stop.load(Ordering::SeqCst) {
@@ -540,8 +540,8 @@ async fn pace_loop(opts: ActorOptions, token: Option<String>, link: Arc<Link>, m
         match client.status(pb::StatusRequest {}).await {
             Ok(st) => {
                 let st = st.into_inner();
-                let full = st.demo_replay_capacity > 0 && st.demo_replay_size >= st.demo_replay_capacity;
-                link.demo_pause.store(full && st.demo_transitions_received >= st.env_steps, Ordering::SeqCst);
+                let pause = st.demo_pretrain_updates_left == 0 && st.demo_transitions_received >= st.env_steps;
+                link.demo_pause.store(pause, Ordering::SeqCst);
             }
             Err(_) => {
                 // A learner away or restarting: drive (the outbox buffers) and reconnect.

@@ -57,8 +57,8 @@ pub struct Link {
     pub last_ack: Mutex<Option<Instant>>,
     /// Microseconds the stepping thread has waited for room in the outbox.
     pub waited_micros: AtomicU64,
-    /// A demonstrator pauses while set: the learner's demonstration partition is full and the
-    /// run's demonstrations have caught up with its learning actors' steps (`pace_loop`).
+    /// A demonstrator pauses while set: the run's demonstrations have caught up with its learning
+    /// actors' steps (`pace_loop`).
     pub demo_pause: AtomicBool,
 }
 

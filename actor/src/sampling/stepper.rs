@@ -20,7 +20,7 @@ use sim_core::town::Town;
 
 use crate::sampling::demonstrator::{Demonstrator, Teacher};
 use crate::sampling::explore::Explorer;
-use crate::sampling::outbox::Link;
+use crate::sampling::outbox::{Link, ROOM_BATCHES};
 
 /// The environments and the policy: runs until stop.
 #[allow(clippy::too_many_arguments)]
@@ -82,7 +82,12 @@ pub fn step_loop(
     }
     let mut total_steps = 0u64;
     while !link.stop.load(Ordering::SeqCst) {
-        if teacher.is_some() && link.demo_pause.load(Ordering::SeqCst) {
+        // A demonstrator waits rather than drops: its steps are not the run's, and the cores are
+        // the learner's and the learning actors' (it also waits while the learner holds its
+        // stream, which a learning actor waits for only while the learner acknowledges).
+        if teacher.is_some()
+            && (link.demo_pause.load(Ordering::SeqCst) || link.outbox.lock().expect("outbox lock").batches.len() > ROOM_BATCHES)
+        {
             std::thread::sleep(std::time::Duration::from_millis(50));
             continue;
         }

@@ -261,7 +261,23 @@ mod tests {
         for n in (9001..=9033).chain(9101..=9110) {
             assert!(text.contains(&n.to_string()), "{n} is missing from the table:\n{text}");
         }
-        for t in ["run-x", "hybrid", "ack", "boom", "disk full", "bad seq", "actor-id-7", "west", "0.125", "0.375", "25%", "50%", "6.2%", "18.8%", "demonstrator (model-based-avoid)"] {
+        for t in [
+            "run-x",
+            "hybrid",
+            "ack",
+            "boom",
+            "disk full",
+            "bad seq",
+            "actor-id-7",
+            "west",
+            "0.125",
+            "0.375",
+            "25%",
+            "50%",
+            "6.2%",
+            "18.8%",
+            "demonstrator (model-based-avoid)",
+        ] {
             assert!(text.contains(t), "{t} is missing from the table:\n{text}");
         }
     }

@@ -461,7 +461,8 @@ fn store(shared: &Shared, b: pb::ExperienceBatch) -> Result<Stored, Status> {
             (Some(log), Some(p)) => Some(log.append(p).map_err(|e| refuse_unlogged(shared, &e))?),
             _ => None,
         };
-        let stored = if demonstration { replay.add_demo_steps(&b.actor_id, &records) } else { replay.add_steps(&b.actor_id, &records) } as u64;
+        let stored =
+            if demonstration { replay.add_demo_steps(&b.actor_id, &records) } else { replay.add_steps(&b.actor_id, &records) } as u64;
         if let Some(log) = &shared.log {
             log.note_frames(replay.log_frame_end(), replay.log_first_live_frame());
         }

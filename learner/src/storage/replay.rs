@@ -791,11 +791,17 @@ impl Replay {
         if let Some(r) = self.demos.as_mut().and_then(|d| d.replay.as_mut())
             && slots.iter().any(|&s| s >= capacity)
         {
-            let (demo, own): (Vec<(usize, f32)>, Vec<(usize, f32)>) =
-                slots.iter().copied().zip(td_abs.iter().copied()).partition(|&(s, _)| s >= capacity);
-            let (ds, dt): (Vec<usize>, Vec<f32>) = demo.into_iter().map(|(s, e)| (s - capacity, e)).unzip();
+            let (mut ds, mut dt, mut os, mut ot) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+            for (&slot, &e) in slots.iter().zip(td_abs) {
+                if slot >= capacity {
+                    ds.push(slot - capacity);
+                    dt.push(e);
+                } else {
+                    os.push(slot);
+                    ot.push(e);
+                }
+            }
             r.update_priorities(&ds, &dt);
-            let (os, ot): (Vec<usize>, Vec<f32>) = own.into_iter().unzip();
             return self.update_priorities(&os, &ot);
         }
         let Some(tree) = self.priorities.as_mut() else { return };

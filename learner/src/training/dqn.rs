@@ -163,7 +163,6 @@ impl Dqn {
         UpdateStats { loss: (loss / n as f64) as f32, mean_q: (q_sum / n as f64) as f32, td_abs, grad_norm, margin_loss }
     }
 
-
     /// Copies the online parameters into the target network.
     pub fn sync_target(&mut self) {
         self.target.clone_from(&self.online);

@@ -202,7 +202,14 @@ fn train_on(shared: &Shared, dqn: &mut Dqn, sample: Sample, m: &mut Smoothed) {
 /// demonstration partition holds `min_replay` transitions (or is full), before the agent's
 /// experience is trained on (a resumed run does those its checkpoint has not done). Its updates
 /// are not the replay ratio's: they are added to the count the ratio starts from.
-fn pretrain(shared: &Shared, dqn: &mut Dqn, m: &mut Smoothed, checkpoints: &mut CheckpointSchedule, run_dir: &std::path::Path, interval: Duration) {
+fn pretrain(
+    shared: &Shared,
+    dqn: &mut Dqn,
+    m: &mut Smoothed,
+    checkpoints: &mut CheckpointSchedule,
+    run_dir: &std::path::Path,
+    interval: Duration,
+) {
     let a = &shared.cfg.agent;
     let ready = a.min_replay.min(a.demo_capacity);
     let mut announced = false;

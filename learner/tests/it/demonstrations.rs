@@ -40,7 +40,12 @@ fn batch(actor: &str, seq: u64, t0: u32, n: u32, demonstration: bool) -> pb::Exp
     let steps = (t0..t0 + n)
         .map(|t| pb::Step {
             t,
-            obs: Some(pb::Observation { image: vec![(2 * (t % 100) + u32::from(demonstration)) as u8; 256], speed: 1.0, d: 0.5, ..Default::default() }),
+            obs: Some(pb::Observation {
+                image: vec![(2 * (t % 100) + u32::from(demonstration)) as u8; 256],
+                speed: 1.0,
+                d: 0.5,
+                ..Default::default()
+            }),
             action: t % 6,
             reward: 0.1,
             ..Default::default()
@@ -79,7 +84,11 @@ async fn demonstrations_come_from_demonstrators_alone() {
 
     let refused = send(&mut c, vec![batch(&agent.actor_id, 1, 0, 10, true)]).await.unwrap_err();
     assert_eq!(refused.code(), Code::InvalidArgument);
-    assert!(refused.message().contains("marked as demonstrations, but actor `agent` registered as a learning actor"), "{}", refused.message());
+    assert!(
+        refused.message().contains("marked as demonstrations, but actor `agent` registered as a learning actor"),
+        "{}",
+        refused.message()
+    );
     let refused = send(&mut c, vec![batch(&demo.actor_id, 1, 0, 10, false)]).await.unwrap_err();
     assert_eq!(refused.code(), Code::InvalidArgument);
     assert!(refused.message().contains("registered as a demonstrator (`model-based-avoid`)"), "{}", refused.message());
