@@ -212,6 +212,13 @@ fn pretrain(
 ) {
     let a = &shared.cfg.agent;
     let ready = a.min_replay.min(a.demo_capacity);
+    if dqn.updates < a.demo_pretrain_updates {
+        tracing::info!(
+            updates = a.demo_pretrain_updates - dqn.updates,
+            demonstrations_needed = ready,
+            "waiting for demonstrations to pre-train on (actor --demonstrate); the agent's experience is trained on after"
+        );
+    }
     let mut announced = false;
     while dqn.updates < a.demo_pretrain_updates && !shared.stopping() {
         checkpoints.tick(shared, dqn, run_dir, interval);

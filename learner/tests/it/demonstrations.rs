@@ -182,3 +182,41 @@ async fn demonstrations_are_trained_on_and_survive_a_crash_image_and_resume() {
     assert_eq!((st.demo_transitions_received, st.demo_transitions_stored, st.transitions_stored), (299, 299, 999));
     again.stop().await.unwrap();
 }
+
+/// Pre-training: `demo_pretrain_updates` updates on demonstrations alone once there are enough of
+/// them (`min_replay`), none before; they are not the replay ratio's, so the agent's experience
+/// that follows gets exactly the updates the ratio gives it (99 transitions at ratio 1, batch 8:
+/// 12), on top of the 20.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn pretraining_runs_on_demonstrations_before_the_agents_experience() {
+    let dir = tempfile::tempdir().unwrap();
+    let running = start_tiny(dir.path(), |cfg| cfg.agent.demo_pretrain_updates = 20).await;
+    let mut c = client(&running.addr.to_string()).await;
+    assert_eq!(status(&mut c).await.demo_pretrain_updates_left, 20);
+    let demo = register(&mut c, "teacher", "model-based").await.unwrap();
+    // 20 demonstrations are fewer than min_replay (32): nothing yet.
+    send(&mut c, vec![batch(&demo.actor_id, 1, 0, 21, true)]).await.unwrap();
+    tokio::time::sleep(Duration::from_millis(300)).await;
+    assert_eq!(status(&mut c).await.learner_step, 0);
+    send(&mut c, vec![batch(&demo.actor_id, 2, 21, 30, true)]).await.unwrap();
+    let deadline = Instant::now() + Duration::from_secs(60);
+    loop {
+        let st = status(&mut c).await;
+        if st.demo_pretrain_updates_left == 0 {
+            assert_eq!((st.learner_step, st.demo_batch_share), (20, 1.0), "demonstrations alone");
+            break;
+        }
+        assert!(Instant::now() < deadline, "no pre-training: {st:?}");
+        tokio::time::sleep(Duration::from_millis(20)).await;
+    }
+    let agent = register(&mut c, "agent", "").await.unwrap();
+    send(&mut c, vec![batch(&agent.actor_id, 1, 0, 100, false)]).await.unwrap();
+    let deadline = Instant::now() + Duration::from_secs(60);
+    while status(&mut c).await.learner_step < 32 {
+        assert!(Instant::now() < deadline, "the agent's updates did not come");
+        tokio::time::sleep(Duration::from_millis(20)).await;
+    }
+    tokio::time::sleep(Duration::from_millis(300)).await;
+    assert_eq!(status(&mut c).await.learner_step, 32, "20 pre-training updates and the ratio's 12");
+    running.stop().await.unwrap();
+}
