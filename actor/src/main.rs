@@ -55,6 +55,13 @@ struct Cli {
     /// actor outlives the learner it was started for.
     #[arg(long, hide = true)]
     exit_with_stdin: bool,
+    /// Run as a demonstrator: drive with this planner (`model-based-avoid`: the reference driver
+    /// with the `astar+avoid` planner, which sees hazards; `model-based`: with plain A*), its
+    /// controls mapped to the run's nearest action, and send the steps as demonstrations, which
+    /// the learner keeps in a replay partition of their own (`[agent] demo_*`). It follows the
+    /// run's episodes, hazards, map and observation, and needs no weights.
+    #[arg(long, value_name = "DRIVER")]
+    demonstrate: Option<String>,
 }
 
 #[derive(Debug, Subcommand)]
@@ -106,6 +113,7 @@ fn main() -> Result<()> {
                 seed: cli.seed,
                 ack_log: cli.ack_log,
                 exit_with_stdin: cli.exit_with_stdin,
+                demonstrate: cli.demonstrate.as_deref().map(sampling::demonstrator::Demonstrator::from_name).transpose()?,
             };
             proto::program::runtime()?.block_on(sampling::run(opts))
         }

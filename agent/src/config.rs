@@ -113,6 +113,38 @@ pub struct AgentConfig {
     pub apex_alpha: f32,
     /// Ape-X actor count N the exponents are spread over, with `per_actor_epsilon`.
     pub apex_actors: u32,
+    /// How actors explore: `epsilon` or `ez_greedy`. `epsilon` is ε-greedy (each step random
+    /// with probability ε); `ez_greedy` is ε-z-greedy (Dabney et al. 2021: with probability ε a
+    /// random action is started and held for n steps, n drawn from a zeta (power-law)
+    /// distribution with exponent `ez_mu`, at most `ez_max_repeat`). ε is the same in both
+    /// (schedule or per-actor).
+    pub exploration: Exploration,
+    /// Exponent μ of ε-z-greedy's duration distribution, P(n) ∝ n^−μ (> 1; Dabney et al.: 2).
+    pub ez_mu: f32,
+    /// Longest hold of ε-z-greedy, in steps (at least 1; 1 is ε-greedy).
+    pub ez_max_repeat: u32,
+    /// Transitions the replay keeps from demonstrators (`actor --demonstrate`), in a partition of
+    /// their own: FIFO among themselves, never evicted by the agent's experience. Its byte cap is
+    /// `replay_max_bytes` scaled by `demo_capacity / replay_capacity`. 0 refuses demonstrators.
+    pub demo_capacity: usize,
+    /// Share of every training batch drawn from the demonstrations while there are any (each
+    /// sample is one with this probability). Decays linearly to `demo_share_final` over
+    /// `demo_share_decay_steps` environment steps.
+    pub demo_share: f32,
+    /// Share of demonstrations at the end of the decay.
+    pub demo_share_final: f32,
+    /// Environment steps of the decay; 0 keeps `demo_share` for the whole run.
+    pub demo_share_decay_steps: u64,
+    /// DQfD's margin l: the large-margin loss max_a [Q(s,a) + l·(a ≠ a_E)] − Q(s,a_E) asks the
+    /// demonstrated action a_E to be worth at least this much more than any other.
+    pub demo_margin: f32,
+    /// Weight λ of the large-margin loss on demonstration samples, added to the TD loss (batch
+    /// mean); 0 turns it off.
+    pub demo_margin_weight: f32,
+    /// Updates on demonstrations alone before the agent's experience is trained on (DQfD's
+    /// pre-training); they start once the demonstration partition holds `min_replay` transitions
+    /// (or is full). `actor train` starts its learning actors after them.
+    pub demo_pretrain_updates: u64,
     /// Updates between weight publications to actors.
     pub publish_every_updates: u64,
     /// Seed of network initialisation and replay sampling.
@@ -150,6 +182,16 @@ impl Default for AgentConfig {
             apex_epsilon: 0.4,
             apex_alpha: 7.0,
             apex_actors: 8,
+            exploration: Exploration::Epsilon,
+            ez_mu: 2.0,
+            ez_max_repeat: 30,
+            demo_capacity: 100_000,
+            demo_share: 0.25,
+            demo_share_final: 0.0,
+            demo_share_decay_steps: 0,
+            demo_margin: 0.8,
+            demo_margin_weight: 1.0,
+            demo_pretrain_updates: 0,
             publish_every_updates: 10,
             seed: 0,
         }
@@ -195,6 +237,17 @@ pub struct ServiceConfig {
     /// PEM CA certificate(s) clients' certificates must chain to: mutual TLS; empty: clients need
     /// no certificate. Needs `tls_cert` (`--tls-client-ca`).
     pub tls_client_ca: String,
+}
+
+/// How actors explore (`agent.exploration`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Exploration {
+    /// ε-greedy: every step is random with probability ε.
+    #[default]
+    Epsilon,
+    /// ε-z-greedy: with probability ε a random action held for a zeta-distributed duration.
+    EzGreedy,
 }
 
 /// What an acknowledgement promises (`service.durability`).
@@ -358,6 +411,29 @@ impl RunConfig {
         if a.apex_actors == 0 {
             return bad("apex_actors", "must be at least 1".into());
         }
+        for (x, f) in [(a.demo_share, "demo_share"), (a.demo_share_final, "demo_share_final")] {
+            if !(0.0..=1.0).contains(&x) {
+                return bad(f, format!("{x} must be in [0, 1]"));
+            }
+        }
+        if !(a.ez_mu.is_finite() && a.ez_mu > 1.0) {
+            return bad("ez_mu", format!("{} must be > 1 (a zeta distribution's exponent)", a.ez_mu));
+        }
+        if !(1..=10_000).contains(&a.ez_max_repeat) {
+            return bad("ez_max_repeat", format!("{} must be 1..=10000", a.ez_max_repeat));
+        }
+        if a.demo_capacity != 0 && a.demo_capacity < a.batch_size {
+            return bad(
+                "demo_capacity",
+                format!("{} must be 0 (no demonstrations) or at least batch_size ({})", a.demo_capacity, a.batch_size),
+            );
+        }
+        if !(a.demo_margin.is_finite() && a.demo_margin >= 0.0) {
+            return bad("demo_margin", format!("{} must be >= 0", a.demo_margin));
+        }
+        if !(a.demo_margin_weight.is_finite() && a.demo_margin_weight >= 0.0) {
+            return bad("demo_margin_weight", format!("{} must be >= 0 (0 turns the margin loss off)", a.demo_margin_weight));
+        }
         if a.publish_every_updates == 0 {
             return bad("publish_every_updates", "must be at least 1".into());
         }
@@ -408,6 +484,18 @@ impl RunConfig {
             let frac = (env_steps as f32 / a.epsilon_decay_steps.max(1) as f32).min(1.0);
             a.epsilon_start + (a.epsilon_end - a.epsilon_start) * frac
         }
+    }
+
+    /// The share of each batch drawn from demonstrations after `env_steps` environment steps:
+    /// `demo_share` decayed linearly to `demo_share_final` over `demo_share_decay_steps`.
+    #[must_use]
+    pub fn demo_share(&self, env_steps: u64) -> f32 {
+        let a = &self.agent;
+        if a.demo_share_decay_steps == 0 {
+            return a.demo_share;
+        }
+        let frac = (env_steps as f32 / a.demo_share_decay_steps as f32).min(1.0);
+        a.demo_share + (a.demo_share_final - a.demo_share) * frac
     }
 
     /// The network this configuration describes (its camera, scalar inputs, actions, filters

@@ -125,6 +125,7 @@ fn network(c: &mut Criterion) {
         rewards: vec![0.1; n],
         discounts: vec![0.99; n],
         weights: vec![1.0; n],
+        demos: 0,
     };
     group.bench_function("update_batch32_84x84x3", |b| b.iter(|| black_box(dqn.update(&batch).loss)));
     group.finish();

@@ -90,6 +90,7 @@ fn update(n: usize, updates: u64) -> u64 {
         next_scalars: (0..n * shape.scalars).map(|i| (i % 5) as f32 / 5.0).collect(),
         discounts: (0..n).map(|i| if i % 9 == 0 { 0.0 } else { 0.97 }).collect(),
         weights: vec![1.0; n],
+        demos: 0,
     };
     let mut dqn = Dqn::with_threads(shape, &cfg.agent, 1);
     for _ in 0..updates {

@@ -32,6 +32,9 @@ pub struct ActorRecord {
     /// id is no longer accepted.
     pub id: String,
     pub name: String,
+    /// The driver it demonstrates with (`RegisterRequest.demonstrator`); empty for a learning
+    /// actor.
+    pub demonstrator: String,
     pub index: u32,
     pub envs: u32,
     pub last_seen: Instant,
@@ -60,6 +63,7 @@ impl ActorRecord {
         Self {
             id,
             name,
+            demonstrator: String::new(),
             index,
             envs,
             last_seen: Instant::now(),
@@ -114,7 +118,17 @@ pub struct TrainStats {
     /// Seconds experience streams have waited for the training thread to catch up with the
     /// replay ratio (`service.update_lag_limit`), summed over streams: the actors held.
     pub held_secs: f64,
+    /// DQfD's large-margin loss on the demonstrations of recent batches (smoothed); none before
+    /// a batch held one.
+    pub margin_loss: Option<f64>,
+    /// The share of demonstrations in the last [`DEMO_SHARE_WINDOW`] batches.
+    pub demo_batch_share: f64,
+    /// Pre-training updates (`agent.demo_pretrain_updates`) still to do.
+    pub pretrain_updates_left: u64,
 }
+
+/// Batches the reported share of demonstrations is measured over.
+pub const DEMO_SHARE_WINDOW: usize = 100;
 
 /// Where this session's replay ratio counts from: fixed when the replay first reaches its
 /// minimum while a training thread runs ([`Shared::fix_ratio_baseline`]), cleared when the
@@ -209,6 +223,7 @@ impl Shared {
         let shape = cfg.net_shape();
         let frame_bytes = cfg.frame_bytes();
         let backpressure = Backpressure::new(cfg.service.update_lag_limit > 0);
+        let pretrain_updates_left = cfg.agent.demo_pretrain_updates.saturating_sub(counters.learner_step);
         Self {
             run_id: counters.run_id.clone(),
             elapsed_before: counters.elapsed_secs,
@@ -222,7 +237,7 @@ impl Shared {
             weights: RwLock::new(weights),
             actors: Mutex::new(Vec::new()),
             recent_episodes: Mutex::new(VecDeque::new()),
-            stats: Mutex::new(TrainStats::default()),
+            stats: Mutex::new(TrainStats { pretrain_updates_left, ..TrainStats::default() }),
             metrics,
             ratio_session: Mutex::new(ratio_session),
             ratio_baseline: Mutex::new(None),
@@ -338,7 +353,10 @@ impl Shared {
     pub fn train_record(&self) -> TrainRecord {
         let c = self.counters.lock().expect("counters lock").clone();
         let s = *self.stats.lock().expect("stats lock");
-        let replay_size = self.replay.lock().expect("replay lock").len() as u64;
+        let (replay_size, demos) = {
+            let r = self.replay.lock().expect("replay lock");
+            (r.len() as u64, r.demo_len() > 0)
+        };
         let (episode_return_mean, completion_rate, collision_rate) = {
             let window = self.recent_episodes.lock().expect("episodes lock");
             let n = window.len() as f64;
@@ -379,6 +397,8 @@ impl Shared {
             completion_rate,
             collision_rate,
             weights_lag_mean,
+            margin_loss: s.margin_loss,
+            demo_batch_share: demos.then_some(s.demo_batch_share),
         }
     }
 

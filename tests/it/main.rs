@@ -9,6 +9,7 @@ mod slow;
 mod support;
 
 mod actor_faults;
+mod demonstrators;
 mod dependencies;
 mod distributed;
 mod resume;

@@ -82,12 +82,26 @@ pub struct TrainArgs {
     /// RUN_DIR/replay-log.damaged/ (without it, such a log is refused with what it would drop).
     #[arg(long)]
     pub truncate_log: bool,
+    /// Demonstrator processes started beside the learning actors (`actor --demonstrate`, with
+    /// --envs environments each): they drive `--demonstrator`'s planner and their steps are kept
+    /// as demonstrations (`[agent] demo_capacity`, `demo_share`, `demo_margin`; docs/TRAINING.md).
+    /// With `[agent] demo_pretrain_updates` > 0 the learning actors start once pre-training is done.
+    #[arg(long, default_value_t = 0, value_name = "N")]
+    pub demo_actors: usize,
+    /// The driver the demonstrators demonstrate with: `model-based-avoid` (sees hazards) or
+    /// `model-based`.
+    #[arg(long, default_value = "model-based-avoid", value_name = "DRIVER")]
+    pub demonstrator: String,
 }
 
 pub async fn run(args: &TrainArgs) -> Result<()> {
     if args.actors == 0 || args.actors > 64 {
         anyhow::bail!("--actors {} must be 1..=64", args.actors);
     }
+    if args.demo_actors > 64 {
+        anyhow::bail!("--demo-actors {} must be 0..=64", args.demo_actors);
+    }
+    let demonstrator = crate::sampling::demonstrator::Demonstrator::from_name(&args.demonstrator)?;
     if !(args.eval_every.is_finite() && args.eval_every >= 0.0) || args.eval_runs == 0 {
         anyhow::bail!("--eval-every {} must be >= 0 minutes and --eval-runs {} at least 1", args.eval_every, args.eval_runs);
     }
@@ -158,7 +172,32 @@ pub async fn run(args: &TrainArgs) -> Result<()> {
         args.actors,
         args.envs
     );
-    for k in 0..args.actors {
+    // Demonstrators first: pre-training, when configured, needs their demonstrations before the
+    // learning actors start.
+    for k in 0..args.demo_actors {
+        let log = open_actor_log(&args.run_dir.join(format!("demo-{k}.log")), &session.replace("actor {k}", &format!("demonstrator {k}")))?;
+        // Seeds after the learning actors' (64·S + k for k < 64), so that no demonstrator drives
+        // a learning actor's episodes.
+        let seed = args.seed.map_or(1000 + k as u64, |s| s.wrapping_mul(64).wrapping_add(1000 + k as u64));
+        let child = Command::new(&exe)
+            .args(["--learner", &addr, "--envs", &args.envs.to_string(), "--name", &format!("demo-{k}"), "--seed", &seed.to_string()])
+            .args(["--demonstrate", demonstrator.name(), "--exit-with-stdin"])
+            .stdin(Stdio::piped())
+            .stdout(Stdio::null())
+            .stderr(log)
+            .spawn()
+            .with_context(|| format!("starting demonstrator {k} ({})", exe.display()))?;
+        children.push(child);
+    }
+    let mut interrupted = false;
+    if args.demo_actors > 0 {
+        eprintln!("{} demonstrator(s) driving `{}` (logs: {}/demo-N.log)", args.demo_actors, demonstrator.name(), args.run_dir.display());
+        interrupted = tokio::select! {
+            () = wait_for_pretraining(&running.shared) => false,
+            () = proto::shutdown::signal() => true,
+        };
+    }
+    for k in 0..if interrupted { 0 } else { args.actors } {
         let log = open_actor_log(&args.run_dir.join(format!("actor-{k}.log")), &session.replace("{k}", &k.to_string()))?;
         let seed = args.seed.map_or(k as u64, |s| s.wrapping_mul(64).wrapping_add(k as u64));
         // Its standard input is a pipe this process holds: when this process dies, even by
@@ -203,7 +242,8 @@ pub async fn run(args: &TrainArgs) -> Result<()> {
         }
     };
     tokio::select! {
-        () = proto::shutdown::signal() => {}
+        () = proto::shutdown::signal(), if !interrupted => {}
+        () = std::future::ready(()), if interrupted => {}
         spent = budget_spent => eprintln!("{spent}"),
         // Training died (see `learner::serve`): stop everything and exit non-zero (the stop below
         // returns the reason); the same command resumes from the last checkpoint and the replay log.
@@ -302,6 +342,25 @@ async fn periodic_evaluation(
         if let Err(e) = shared.metrics.eval(&record) {
             tracing::warn!("writing eval.jsonl: {e}");
         }
+    }
+}
+
+/// Waits while the learner pre-trains on demonstrations (`agent.demo_pretrain_updates`), saying
+/// how far it is every 10 s; returns at once when there is none to do.
+async fn wait_for_pretraining(shared: &learner::shared_state::Shared) {
+    let left = || shared.stats.lock().expect("stats lock").pretrain_updates_left;
+    if left() == 0 {
+        return;
+    }
+    eprintln!("pre-training on demonstrations ({} updates) before the learning actors start", left());
+    let mut said = Instant::now();
+    while left() > 0 && !shared.stopping() && shared.failure().is_none() {
+        if said.elapsed() >= Duration::from_secs(10) {
+            let demos = shared.replay.lock().expect("replay lock").demo_len();
+            eprintln!("  pre-training: {} updates left, {demos} demonstrations stored", left());
+            said = Instant::now();
+        }
+        tokio::time::sleep(Duration::from_millis(200)).await;
     }
 }
 

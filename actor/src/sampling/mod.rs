@@ -13,6 +13,8 @@
 //! from 0.5 s to 30 s (±25 %) until a batch is acknowledged again: never a tight reconnect loop.
 
 pub mod batch_split;
+pub mod demonstrator;
+pub mod explore;
 pub mod outbox;
 pub mod stepper;
 pub mod town;
@@ -58,6 +60,9 @@ pub struct ActorOptions {
     pub ack_log: Option<PathBuf>,
     /// Exit when standard input closes (the parent that started this actor died).
     pub exit_with_stdin: bool,
+    /// Drive with this demonstrator instead of the learner's weights, and send demonstrations
+    /// (`--demonstrate`).
+    pub demonstrate: Option<crate::sampling::demonstrator::Demonstrator>,
 }
 
 /// Registers, retrying with exponential backoff (0.5 s doubling to 30 s, ±25 % jitter) until it
@@ -84,6 +89,7 @@ async fn register(
                     envs: envs as u32,
                     protocol: proto::v1::PROTOCOL,
                     vector_layout: sim_core::sensor::LAYOUT_VERSION.into(),
+                    demonstrator: opts.demonstrate.map(|d| d.name().to_owned()).unwrap_or_default(),
                 })
                 .await
                 .map_err(|s| anyhow::anyhow!("register: {}", s.message()))?
@@ -181,15 +187,20 @@ pub async fn run(opts: ActorOptions) -> Result<()> {
         let link = link.clone();
         let cfg = run_cfg.clone();
         let (envs, seed, index, stream) = (opts.envs, opts.seed, reg.actor_index, reg.episode_stream);
-        let (batch_steps, buffer_steps) = (opts.batch_steps, opts.buffer_steps);
+        let (batch_steps, buffer_steps, demonstrate) = (opts.batch_steps, opts.buffer_steps, opts.demonstrate);
         std::thread::Builder::new().name("step".into()).spawn(move || {
-            let r = step_loop(&cfg, &town, &link, envs, seed, index, stream, batch_steps, buffer_steps);
+            let r = step_loop(&cfg, &town, &link, envs, seed, index, stream, batch_steps, buffer_steps, demonstrate);
             link.stepper_done.store(true, Ordering::SeqCst);
             r
         })?
     };
     link.connected.store(true, Ordering::SeqCst);
-    let weights = tokio::spawn(weights_loop(opts.clone(), token.clone(), link.clone(), client.clone(), run_cfg.net_shape()));
+    // A demonstrator drives without weights: it asks for none, and keeps pace with the run.
+    let weights = if opts.demonstrate.is_some() {
+        tokio::spawn(pace_loop(opts.clone(), token.clone(), link.clone(), client.clone()))
+    } else {
+        tokio::spawn(weights_loop(opts.clone(), token.clone(), link.clone(), client.clone(), run_cfg.net_shape()))
+    };
     let progress = tokio::spawn(progress_loop(link.clone()));
     // Sending ends when stopped and flushed, or at the flush deadline, whatever the learner does
     // (a frozen learner holds a call open for ever).
@@ -372,6 +383,7 @@ async fn stream_batches(
             weights_version: version,
             epsilon,
             dropped_steps: dropped,
+            demonstration: opts.demonstrate.is_some(),
         };
         if tx.send(batch.clone()).await.is_err() {
             return StreamEnd::Failed;
@@ -505,6 +517,35 @@ async fn weights_loop(opts: ActorOptions, token: Option<String>, link: Arc<Link>
             Err(_) => {
                 failing = true;
                 // The learner may be restarting: try a new connection next time.
+                if let Ok(c) = connect(&opts.learner, token.clone()).await {
+                    client = c;
+                }
+            }
+        }
+        sleep_unless_stopped(&link, Duration::from_secs(1)).await;
+    }
+}
+
+/// A demonstrator's pace: it needs no weights and costs no inference, so unchecked it would
+/// outrun the learning actors many times over, on the cores the learner and they need. Every
+/// second it asks the learner's Status and pauses the stepping thread while the run's
+/// demonstrations (all demonstrators') have caught up with its learning actors' steps, except
+/// while the learner waits for demonstrations to pre-train on (`agent.demo_pretrain_updates`).
+async fn pace_loop(opts: ActorOptions, token: Option<String>, link: Arc<Link>, mut client: Client) {
+    loop {
+        if link.stop.load(Ordering::SeqCst) {
+            link.demo_pause.store(false, Ordering::SeqCst);
+            return;
+        }
+        match client.status(pb::StatusRequest {}).await {
+            Ok(st) => {
+                let st = st.into_inner();
+                let pause = st.demo_pretrain_updates_left == 0 && st.demo_transitions_received >= st.env_steps;
+                link.demo_pause.store(pause, Ordering::SeqCst);
+            }
+            Err(_) => {
+                // A learner away or restarting: drive (the outbox buffers) and reconnect.
+                link.demo_pause.store(false, Ordering::SeqCst);
                 if let Ok(c) = connect(&opts.learner, token.clone()).await {
                     client = c;
                 }

@@ -57,6 +57,9 @@ pub struct Link {
     pub last_ack: Mutex<Option<Instant>>,
     /// Microseconds the stepping thread has waited for room in the outbox.
     pub waited_micros: AtomicU64,
+    /// A demonstrator pauses while set: the run's demonstrations have caught up with its learning
+    /// actors' steps (`pace_loop`).
+    pub demo_pause: AtomicBool,
 }
 
 /// Batches the outbox may hold before the stepping thread waits for the learner to take some.

@@ -1,7 +1,9 @@
 //! An actor's stepping thread: N environments, one batched greedy forward pass for all of them
-//! per step, ε-greedy exploration, and the steps handed to the outbox in batches. New weights are
-//! swapped in between steps; it waits on the learner only while one that is taking batches has
-//! several waiting (`Link::wait_for_room`: the replay ratio's backpressure).
+//! per step, ε-greedy or ε-z-greedy exploration (`explore.rs`), and the steps handed to the outbox
+//! in batches. New weights are swapped in between steps; it waits on the learner only while one
+//! that is taking batches has several waiting (`Link::wait_for_room`: the replay ratio's
+//! backpressure). A demonstrator's thread drives with its teacher instead (`demonstrator.rs`):
+//! no network, no exploration.
 
 use std::sync::Arc;
 use std::sync::atomic::Ordering;
@@ -10,13 +12,15 @@ use agent::config::RunConfig;
 use agent::fastnet::Inference;
 use anyhow::Result;
 use proto::v1 as pb;
-use rand::{Rng, RngExt, SeedableRng};
+use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use sim_core::env::{Env, StepInfo};
 use sim_core::scenario::Scenario;
 use sim_core::town::Town;
 
-use crate::sampling::outbox::Link;
+use crate::sampling::demonstrator::{Demonstrator, Teacher};
+use crate::sampling::explore::Explorer;
+use crate::sampling::outbox::{Link, ROOM_BATCHES};
 
 /// The environments and the policy: runs until stop.
 #[allow(clippy::too_many_arguments)]
@@ -30,6 +34,7 @@ pub fn step_loop(
     episode_stream: u64,
     batch_steps: usize,
     buffer_steps: usize,
+    demonstrator: Option<Demonstrator>,
 ) -> Result<()> {
     anyhow::ensure!(cfg.env.camera.is_some() || cfg.env.vector.is_some(), "the run has neither a camera nor the vector sensor");
     let shape = cfg.net_shape();
@@ -40,6 +45,8 @@ pub fn step_loop(
     let actions = cfg.agent.action_set.actions();
     let mut rng = episode_rng(seed, index, episode_stream);
     let mut envs: Vec<Env> = (0..n).map(|_| Env::new(town.clone(), cfg.env.clone())).collect::<Result<_, _>>()?;
+    let mut teacher = demonstrator.map(|d| Teacher::new(d, cfg, town, n)).transpose()?;
+    let mut explorer = Explorer::new(&cfg.agent, n);
     let mut episode = vec![0u64; n];
     let mut t = vec![0u32; n];
     let mut returns = vec![0f64; n];
@@ -68,21 +75,41 @@ pub fn step_loop(
             tracing::info!(episode_stream, first_episode_seed = seed, "environments starting");
         }
         env.reset(seed, Scenario::Random)?;
+        if let Some(t) = teacher.as_mut() {
+            t.reset(k, seed, Scenario::Random)?;
+        }
         pending.push(pb::Step { env: k as u32, episode: 0, t: 0, obs: Some(wire(env.observation(), env.image())), ..pb::Step::default() });
     }
     let mut total_steps = 0u64;
     while !link.stop.load(Ordering::SeqCst) {
+        // A demonstrator waits rather than drops: its steps are not the run's, and the cores are
+        // the learner's and the learning actors' (it also waits while the learner holds its
+        // stream, which a learning actor waits for only while the learner acknowledges).
+        if teacher.is_some()
+            && (link.demo_pause.load(Ordering::SeqCst) || link.outbox.lock().expect("outbox lock").batches.len() > ROOM_BATCHES)
+        {
+            std::thread::sleep(std::time::Duration::from_millis(50));
+            continue;
+        }
         if let Some((version, params)) = link.fresh_weights.lock().expect("weights lock").take() {
             net.set_params(params);
             link.acting_version.store(version, Ordering::SeqCst);
         }
-        // One batched forward pass for all environments.
-        let scalars = agent::features::env_inputs(cfg, envs.iter());
-        let greedy = net.greedy(envs.iter().map(|e| e.stacked_image().data.as_slice()), &scalars);
-        let epsilon = cfg.epsilon(index, link.run_env_steps(total_steps));
+        // One batched forward pass for all environments (a demonstrator's teacher needs none).
+        let (greedy, epsilon) = match &teacher {
+            Some(t) => ((0..n).map(|k| t.act(k)).collect(), 0.0),
+            None => {
+                let scalars = agent::features::env_inputs(cfg, envs.iter());
+                let greedy = net.greedy(envs.iter().map(|e| e.stacked_image().data.as_slice()), &scalars);
+                (greedy, cfg.epsilon(index, link.run_env_steps(total_steps)))
+            }
+        };
         for (k, env) in envs.iter_mut().enumerate() {
-            let a = if rng.random::<f32>() < epsilon { rng.random_range(0..actions.len()) as u32 } else { greedy[k] };
+            let a = if teacher.is_some() { greedy[k] } else { explorer.choose(k, greedy[k], epsilon, actions.len(), &mut rng) };
             let r = env.step(actions[a as usize])?;
+            if let Some(t) = teacher.as_mut() {
+                t.step(k, actions[a as usize])?;
+            }
             t[k] += 1;
             returns[k] += f64::from(r.reward);
             pending.push(pb::Step {
@@ -100,7 +127,12 @@ pub fn step_loop(
                 episode[k] += 1;
                 t[k] = 0;
                 returns[k] = 0.0;
-                env.reset(episode_seed(&mut rng), Scenario::Random)?;
+                explorer.episode_ended(k);
+                let seed = episode_seed(&mut rng);
+                env.reset(seed, Scenario::Random)?;
+                if let Some(t) = teacher.as_mut() {
+                    t.reset(k, seed, Scenario::Random)?;
+                }
                 pending.push(pb::Step {
                     env: k as u32,
                     episode: episode[k],
@@ -127,7 +159,7 @@ pub fn step_loop(
         ob.batches.push_back((
             pending,
             summaries,
-            cfg.epsilon(index, link.run_env_steps(total_steps)),
+            if teacher.is_some() { 0.0 } else { cfg.epsilon(index, link.run_env_steps(total_steps)) },
             link.acting_version.load(Ordering::SeqCst),
         ));
     }

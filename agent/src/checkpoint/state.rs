@@ -19,6 +19,17 @@ pub struct Counters {
     /// On resume, batches after it are counted again from the log. Absent from older checkpoints.
     #[serde(default)]
     pub replay_log_position: u64,
+    /// Demonstration transitions received and stored (`actor --demonstrate`): not in
+    /// `env_steps` nor `transitions_*`, which count the agent's own experience. Absent from older
+    /// checkpoints and from runs without demonstrations.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub demo_transitions_received: u64,
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub demo_transitions_stored: u64,
+}
+
+fn is_zero(x: &u64) -> bool {
+    *x == 0
 }
 
 /// `state.json`.

@@ -6,7 +6,7 @@ use std::path::Path;
 use proto::v1 as pb;
 
 use learner::serve::ADDR_FILE;
-use learner::telemetry::status_report::{ActorReport, EpisodesReport, ReliabilityReport, StatusReport};
+use learner::telemetry::status_report::{ActorReport, DemonstrationsReport, EpisodesReport, ReliabilityReport, StatusReport};
 
 /// The address a local run's learner listens on, read from `run_dir/server.addr`.
 pub fn addr_from_run_dir(run_dir: &Path) -> anyhow::Result<String> {
@@ -61,6 +61,17 @@ pub fn table(report: &StatusReport) -> String {
         mean_q,
         epsilon,
         episodes: EpisodesReport { total, window, mean_return, completion_rate, collision_rate },
+        demonstrations:
+            DemonstrationsReport {
+                received: demo_received,
+                stored: demo_stored,
+                replay_size: demo_size,
+                replay_capacity: demo_capacity,
+                batch_share: demo_batch_share,
+                share: demo_share,
+                margin_loss,
+                pretrain_updates_left,
+            },
         reliability:
             ReliabilityReport {
                 durability,
@@ -111,6 +122,14 @@ pub fn table(report: &StatusReport) -> String {
         100.0 * completion_rate,
         100.0 * collision_rate
     ));
+    if *demo_received > 0 || actors.iter().any(|a| !a.demonstrator.is_empty()) {
+        line(format!(
+            "demonstrations received {demo_received}   stored {demo_stored}   in replay {demo_size}/{demo_capacity}   share of the last batches {:.1}% (configured {:.1}%)   margin loss {:.4}   pre-training updates left {pretrain_updates_left}",
+            100.0 * demo_batch_share,
+            100.0 * demo_share,
+            or_nan(margin_loss)
+        ));
+    }
     line(format!(
         "{:<34} {:<12} {:>5} {:>9} {:>10} {:>8} {:>7} {:>12} {:>8} {:>7} {:>7} {:>8} {:>7} {:>8}",
         "actor",
@@ -144,9 +163,11 @@ pub fn table(report: &StatusReport) -> String {
             dropped_steps,
             epsilon,
             held_secs,
+            demonstrator,
         } = a;
+        let role = if demonstrator.is_empty() { String::new() } else { format!("  demonstrator ({demonstrator})") };
         line(format!(
-            "{actor_id:<34} {name:<12} {actor_index:>5} {connected:>9} {last_seen_secs:>9.1}s {weights_version:>8} {version_lag:>7} {transitions:>12} {rejected_batches:>8} {open_streams:>7} {registrations:>7} {dropped_steps:>8} {epsilon:>7.3} {held_secs:>7.0}s"
+            "{actor_id:<34} {name:<12} {actor_index:>5} {connected:>9} {last_seen_secs:>9.1}s {weights_version:>8} {version_lag:>7} {transitions:>12} {rejected_batches:>8} {open_streams:>7} {registrations:>7} {dropped_steps:>8} {epsilon:>7.3} {held_secs:>7.0}s{role}"
         ));
     }
     out
@@ -185,6 +206,7 @@ mod tests {
             dropped_steps: 9109,
             epsilon: 0.125,
             held_secs: 9110.0,
+            demonstrator: "model-based-avoid".into(),
         };
         let s = pb::StatusResponse {
             run_id: "run-x".into(),
@@ -226,12 +248,36 @@ mod tests {
             env_steps: 9025,
             run_secs: 9026.0,
             held_secs: 9027.0,
+            demo_transitions_received: 9028,
+            demo_transitions_stored: 9029,
+            demo_replay_size: 9030,
+            demo_replay_capacity: 9031,
+            demo_batch_share: 0.0625,
+            demo_share: 0.1875,
+            margin_loss: 9032.0,
+            demo_pretrain_updates_left: 9033,
         };
         let text = table(&StatusReport::from(s));
-        for n in (9001..=9027).chain(9101..=9110) {
+        for n in (9001..=9033).chain(9101..=9110) {
             assert!(text.contains(&n.to_string()), "{n} is missing from the table:\n{text}");
         }
-        for t in ["run-x", "hybrid", "ack", "boom", "disk full", "bad seq", "actor-id-7", "west", "0.125", "0.375", "25%", "50%"] {
+        for t in [
+            "run-x",
+            "hybrid",
+            "ack",
+            "boom",
+            "disk full",
+            "bad seq",
+            "actor-id-7",
+            "west",
+            "0.125",
+            "0.375",
+            "25%",
+            "50%",
+            "6.2%",
+            "18.8%",
+            "demonstrator (model-based-avoid)",
+        ] {
             assert!(text.contains(t), "{t} is missing from the table:\n{text}");
         }
     }

@@ -197,6 +197,11 @@ pub(crate) async fn start_with(opts: ServeOptions, train: Trainer) -> Result<Run
         beta: a.priority_beta,
         seed: a.seed ^ counters.learner_step,
     });
+    if a.demo_capacity > 0 {
+        // Its byte cap in proportion to its capacity, from the agent partition's.
+        let max_bytes = (a.replay_max_bytes as f64 * a.demo_capacity as f64 / a.replay_capacity as f64) as u64;
+        replay.keep_demonstrations(a.demo_capacity, max_bytes.max(1 << 20));
+    }
     let log = match cfg.service.durability {
         Durability::None => None,
         Durability::Ack => {

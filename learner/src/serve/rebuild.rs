@@ -31,6 +31,17 @@ pub(super) fn rebuild(
         checkpointed,
         on_damage,
         |position, record| {
+            if record.demonstration {
+                // Demonstrations go back to their partition; a run that keeps none now drops them.
+                let stored = replay.add_demo_steps(record.actor, &record.steps) as u64;
+                if position > checkpointed {
+                    let steps = record.steps.iter().filter(|s| s.t > 0).count() as u64;
+                    after.demo_transitions_received += steps;
+                    after.demo_transitions_stored += stored;
+                    after.replay_log_position = position;
+                }
+                return replay.log_frame_end();
+            }
             let stored = replay.add_steps(record.actor, &record.steps) as u64;
             if position > checkpointed {
                 let env_steps = record.steps.iter().filter(|s| s.t > 0).count() as u64;
@@ -40,7 +51,7 @@ pub(super) fn rebuild(
                 after.episodes += u64::from(record.episodes);
                 after.replay_log_position = position;
             }
-            replay.next_frame_id()
+            replay.log_frame_end()
         },
     )?;
     // No actor continues an earlier process's streams.
@@ -49,13 +60,16 @@ pub(super) fn rebuild(
     counters.transitions_received += after.transitions_received;
     counters.transitions_stored += after.transitions_stored;
     counters.episodes += after.episodes;
+    counters.demo_transitions_received += after.demo_transitions_received;
+    counters.demo_transitions_stored += after.demo_transitions_stored;
     counters.replay_log_position = counters.replay_log_position.max(after.replay_log_position).max(found.last_position);
-    log.note_frames(replay.next_frame_id(), replay.first_frame_id());
+    log.note_frames(replay.log_frame_end(), replay.log_first_live_frame());
     if found.records > 0 {
         tracing::info!(
             batches = found.records,
             segments = found.segments,
             replay_size = replay.len(),
+            demonstrations = replay.demo_len(),
             batches_after_checkpoint = found.last_position.saturating_sub(checkpointed),
             secs = format!("{:.1}", started.elapsed().as_secs_f64()),
             "replay rebuilt from the replay log"

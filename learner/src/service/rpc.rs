@@ -30,6 +30,9 @@ use crate::telemetry::records::{EpisodeRecord, derived_outcome};
 
 pub use crate::service::validate::MAX_STEPS_PER_BATCH;
 
+/// The first actor index of demonstrators (learning actors count from 0).
+pub const DEMONSTRATOR_INDEX: u32 = 1 << 16;
+
 /// The service.
 #[derive(Debug, Clone)]
 pub struct LearnerService {
@@ -64,18 +67,32 @@ impl Learner for LearnerService {
                 sim_core::sensor::LAYOUT_VERSION
             )));
         }
+        if !r.demonstrator.is_empty() && s.cfg.agent.demo_capacity == 0 {
+            return Err(Status::failed_precondition(format!(
+                "demonstrator `{}`: this run keeps no demonstrations ([agent] demo_capacity = 0)",
+                r.demonstrator
+            )));
+        }
         let n = s.registrations.fetch_add(1, Ordering::SeqCst);
         let mut actors = s.actors.lock().expect("actors lock");
         // An actor that comes back under the same name (reconnected, or restarted) reuses its
         // record, index (and so exploration rate) included; its earlier registration ends.
         let existing = (!r.name.is_empty()).then(|| actors.iter().position(|a| a.name == r.name)).flatten();
-        let index = existing.map_or(actors.len() as u32, |k| actors[k].index);
+        // Learning actors are numbered 0, 1, … among themselves (Ape-X's per-actor ε), whenever
+        // demonstrators register; demonstrators from DEMONSTRATOR_INDEX on.
+        let demonstrator = !r.demonstrator.is_empty();
+        let fresh_index = {
+            let peers = actors.iter().filter(|a| a.demonstrator.is_empty() != demonstrator).count() as u32;
+            if demonstrator { DEMONSTRATOR_INDEX + peers } else { peers }
+        };
+        let index = existing.map_or(fresh_index, |k| actors[k].index);
         let id = format!("{}-a{}-{}", s.run_id, index, n);
         let ended = match existing {
             Some(k) => {
                 let a = &mut actors[k];
                 let old = std::mem::replace(&mut a.id, id.clone());
                 a.envs = r.envs;
+                a.demonstrator.clone_from(&r.demonstrator);
                 a.registrations += 1;
                 a.last_seen = Instant::now();
                 a.last_seq = None;
@@ -83,7 +100,9 @@ impl Learner for LearnerService {
                 Some(old)
             }
             None => {
-                actors.push(ActorRecord::new(id.clone(), r.name.clone(), index, r.envs));
+                let mut record = ActorRecord::new(id.clone(), r.name.clone(), index, r.envs);
+                record.demonstrator.clone_from(&r.demonstrator);
+                actors.push(record);
                 None
             }
         };
@@ -94,7 +113,7 @@ impl Learner for LearnerService {
             // The old registration's half-built transitions will never be completed.
             s.replay.lock().expect("replay lock").end_streams_of(&old);
         }
-        tracing::info!(actor_id = %id, name = %r.name, index, envs = r.envs, "actor registered");
+        tracing::info!(actor_id = %id, name = %r.name, index, envs = r.envs, demonstrator = %r.demonstrator, "actor registered");
         let env_toml = toml::to_string(&s.cfg.env).map_err(|e| Status::internal(e.to_string()))?;
         let agent_toml = toml::to_string(&s.cfg.agent).map_err(|e| Status::internal(e.to_string()))?;
         let (map_name, map_text, map_hash) = s.map.as_ref().map_or_else(Default::default, |m| (m.name.clone(), m.text.clone(), m.hash));
@@ -429,7 +448,11 @@ fn store(shared: &Shared, b: pb::ExperienceBatch) -> Result<Stored, Status> {
             }
         })
         .collect();
-    let payload = shared.log.as_ref().map(|_| replay_log::format::encode(&b.actor_id, b.episodes.len() as u32, &records));
+    let demonstration = b.demonstration;
+    let payload = shared.log.as_ref().map(|_| {
+        let encode = if demonstration { replay_log::format::encode_demonstrations } else { replay_log::format::encode };
+        encode(&b.actor_id, b.episodes.len() as u32, &records)
+    });
     let env_steps = b.steps.iter().filter(|s| s.t > 0).count() as u64;
     let (stored, position, learner_step, total_steps, first_episode, replay_len, stored_in_all) = {
         let mut replay = shared.replay.lock().expect("replay lock");
@@ -438,16 +461,26 @@ fn store(shared: &Shared, b: pb::ExperienceBatch) -> Result<Stored, Status> {
             (Some(log), Some(p)) => Some(log.append(p).map_err(|e| refuse_unlogged(shared, &e))?),
             _ => None,
         };
-        let stored = replay.add_steps(&b.actor_id, &records) as u64;
+        let stored =
+            if demonstration { replay.add_demo_steps(&b.actor_id, &records) } else { replay.add_steps(&b.actor_id, &records) } as u64;
         if let Some(log) = &shared.log {
-            log.note_frames(replay.next_frame_id(), replay.first_frame_id());
+            log.note_frames(replay.log_frame_end(), replay.log_first_live_frame());
         }
         let mut c = shared.counters.lock().expect("counters lock");
-        c.transitions_received += env_steps;
-        c.transitions_stored += stored;
-        c.env_steps += env_steps;
+        if demonstration {
+            // Not the agent's experience: neither the run's env steps (its budget, ε) nor its
+            // replay ratio count them, and its episodes are not the agent's.
+            c.demo_transitions_received += env_steps;
+            c.demo_transitions_stored += stored;
+        } else {
+            c.transitions_received += env_steps;
+            c.transitions_stored += stored;
+            c.env_steps += env_steps;
+        }
         let first = c.episodes;
-        c.episodes += b.episodes.len() as u64;
+        if !demonstration {
+            c.episodes += b.episodes.len() as u64;
+        }
         if let Some(p) = position {
             c.replay_log_position = p;
         }
@@ -471,6 +504,16 @@ async fn acknowledge(shared: &Shared, s: Stored) -> Result<pb::BatchAck, Status>
         a.epsilon = b.epsilon;
         a.dropped_steps += b.dropped_steps;
     });
+    if b.demonstration {
+        // A demonstrator's episodes are the teacher's, not the agent's: they stay out of the
+        // episode log and the statistics.
+        return Ok(pb::BatchAck {
+            seq: b.seq,
+            stored: stored as u32,
+            weights_version: shared.current_weights().version,
+            log_position: position.unwrap_or(0),
+        });
+    }
     let time_secs = shared.run_secs();
     for (k, e) in b.episodes.iter().enumerate() {
         let line = EpisodeRecord {
@@ -524,9 +567,9 @@ fn refuse_unlogged(shared: &Shared, e: &replay_log::LogError) -> Status {
 pub fn status(shared: &Shared) -> pb::StatusResponse {
     let c = shared.counters.lock().expect("counters lock").clone();
     let st = *shared.stats.lock().expect("stats lock");
-    let (replay_size, replay_bytes, capacity, evicted) = {
+    let (replay_size, replay_bytes, capacity, evicted, demo_size, demo_capacity) = {
         let r = shared.replay.lock().expect("replay lock");
-        (r.len() as u64, r.bytes(), r.capacity() as u64, r.evicted())
+        (r.len() as u64, r.bytes(), r.capacity() as u64, r.evicted(), r.demo_len() as u64, r.demo_capacity() as u64)
     };
     let log = shared.log.as_ref().map(replay_log::ReplayLog::stats).unwrap_or_default();
     let version = shared.current_weights().version;
@@ -553,6 +596,7 @@ pub fn status(shared: &Shared) -> pb::StatusResponse {
             dropped_steps: a.dropped_steps,
             epsilon: a.epsilon,
             held_secs: a.held_secs,
+            demonstrator: a.demonstrator.clone(),
         })
         .collect();
     let window = shared.recent_episodes.lock().expect("episodes lock");
@@ -602,6 +646,14 @@ pub fn status(shared: &Shared) -> pb::StatusResponse {
         env_steps: c.env_steps,
         run_secs: shared.run_secs(),
         held_secs: st.held_secs,
+        demo_transitions_received: c.demo_transitions_received,
+        demo_transitions_stored: c.demo_transitions_stored,
+        demo_replay_size: demo_size,
+        demo_replay_capacity: demo_capacity,
+        demo_batch_share: st.demo_batch_share,
+        demo_share: if demo_size > 0 { f64::from(shared.cfg.demo_share(c.env_steps)) } else { 0.0 },
+        margin_loss: st.margin_loss.unwrap_or(f64::NAN),
+        demo_pretrain_updates_left: st.pretrain_updates_left,
     }
 }
 

@@ -46,6 +46,25 @@ pub fn check(x: &Expect, actor: &ActorRecord, b: &pb::ExperienceBatch) -> Result
     if b.steps.is_empty() {
         return invalid("has no steps; empty batches are refused (a batch carries at least one step)".into());
     }
+    // Demonstrations come from demonstrators alone, and demonstrators send nothing else: the
+    // replay keeps the two apart, and neither may pass for the other.
+    match (b.demonstration, actor.demonstrator.is_empty()) {
+        (true, true) => {
+            return invalid(format!(
+                "marked as demonstrations, but actor `{}` registered as a learning actor (RegisterRequest.demonstrator empty); \
+                 only a registration as a demonstrator may send demonstrations",
+                actor.name
+            ));
+        }
+        (false, false) => {
+            return invalid(format!(
+                "not marked as demonstrations, but actor `{}` registered as a demonstrator (`{}`); a demonstrator's batches \
+                 are demonstrations (ExperienceBatch.demonstration = true)",
+                actor.name, actor.demonstrator
+            ));
+        }
+        _ => {}
+    }
     if let Some(last) = actor.last_seq
         && b.seq <= last
     {

@@ -20,12 +20,20 @@
 //! hold f. That covers the `next` stacks too (see [`Replay::push_frame`]). A frame whose
 //! predecessor never arrived (a break in the stream) has a stack that cannot be assembled: the
 //! transitions that would need it are not formed.
+//!
+//! Demonstrations (`actor --demonstrate`, DQfD) live in a partition of their own: a second buffer
+//! of the same kind with its own capacity and byte cap, FIFO among themselves and never evicted by
+//! the agent's experience ([`Replay::add_demo_steps`]). [`Replay::sample_mixed`] draws each sample
+//! from it with a given probability; without demonstrations it is [`Replay::sample`], draw for
+//! draw. The replay log counts the frames of both partitions in one sequence
+//! ([`Replay::log_frame_end`], [`Replay::log_first_live_frame`]), so that a segment is deleted only
+//! once neither partition holds a frame of it.
 
 use std::borrow::Cow;
 use std::collections::{HashMap, VecDeque};
 
 use agent::features::{RawScalars, raw_scalars};
-use rand::{Rng, SeedableRng};
+use rand::{Rng, RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use sim_core::env::PATH_FEATURES;
 
@@ -144,6 +152,37 @@ pub struct Sample {
     pub discounts: Vec<f32>,
     /// Importance-sampling weights (1 for uniform replay).
     pub weights: Vec<f32>,
+    /// The last `demos` transitions are demonstrations (their slots are offset by the agent
+    /// partition's capacity).
+    pub demos: usize,
+}
+
+impl Sample {
+    /// Appends `other`'s transitions after this sample's.
+    fn append(&mut self, mut other: Sample) {
+        self.slots.append(&mut other.slots);
+        self.images.append(&mut other.images);
+        self.next_images.append(&mut other.next_images);
+        self.scalars.append(&mut other.scalars);
+        self.next_scalars.append(&mut other.next_scalars);
+        self.vectors.append(&mut other.vectors);
+        self.next_vectors.append(&mut other.next_vectors);
+        self.actions.append(&mut other.actions);
+        self.rewards.append(&mut other.rewards);
+        self.discounts.append(&mut other.discounts);
+        self.weights.append(&mut other.weights);
+        self.demos += other.demos;
+    }
+}
+
+/// The demonstration partition: configured, and created at the first demonstration.
+#[derive(Debug)]
+struct Demos {
+    cfg: ReplayConfig,
+    replay: Option<Box<Replay>>,
+    /// Draws which samples of a batch are demonstrations (its own stream: the agent
+    /// partition's draws are those of a replay without demonstrations).
+    mix_rng: ChaCha8Rng,
 }
 
 /// The replay buffer.
@@ -177,6 +216,12 @@ pub struct Replay {
     priorities: Option<SumTree>,
     max_priority: f32,
     rng: ChaCha8Rng,
+    /// Runs of this partition's frame ids in the replay log's count of frames (both
+    /// partitions'): (first frame id of the run, its number in the count).
+    log_runs: VecDeque<(u64, u64)>,
+    /// Frames stored by both partitions: the replay log's frame count.
+    log_frames: u64,
+    demos: Option<Demos>,
 }
 
 /// Bytes a stored frame takes: the image, its raw scalars and its vector sensor reading
@@ -234,8 +279,87 @@ impl Replay {
             priorities,
             max_priority: 1.0,
             rng,
+            log_runs: VecDeque::new(),
+            log_frames: 0,
+            demos: None,
             cfg,
         }
+    }
+
+    /// Keeps demonstrations ([`Self::add_demo_steps`]) in a partition of `capacity` transitions
+    /// and `max_bytes` bytes, with this buffer's other settings; its memory is taken at the first
+    /// demonstration.
+    pub fn keep_demonstrations(&mut self, capacity: usize, max_bytes: u64) {
+        let cfg = ReplayConfig { capacity, max_bytes, seed: self.cfg.seed ^ 0xd3e0_5eed_0000_0001, ..self.cfg.clone() };
+        let mix_rng = ChaCha8Rng::seed_from_u64(self.cfg.seed ^ 0x0d3e_0317_0000_0002);
+        self.demos = Some(Demos { cfg, replay: None, mix_rng });
+    }
+
+    /// Transitions in the demonstration partition.
+    #[must_use]
+    pub fn demo_len(&self) -> usize {
+        self.demo_replay().map_or(0, Replay::len)
+    }
+
+    /// Capacity of the demonstration partition (0 when it keeps none).
+    #[must_use]
+    pub fn demo_capacity(&self) -> usize {
+        self.demos.as_ref().map_or(0, |d| d.cfg.capacity)
+    }
+
+    /// Demonstrations that have left their partition (its capacity, its byte cap).
+    #[must_use]
+    pub fn demo_evicted(&self) -> u64 {
+        self.demo_replay().map_or(0, Replay::evicted)
+    }
+
+    fn demo_replay(&self) -> Option<&Replay> {
+        self.demos.as_ref().and_then(|d| d.replay.as_deref())
+    }
+
+    /// Adds the steps of one stream of demonstrator `actor` to the demonstration partition, as
+    /// [`Self::add_steps`] does to the agent's; returns the transitions formed (0, and nothing
+    /// kept, without [`Self::keep_demonstrations`]).
+    pub fn add_demo_steps(&mut self, actor: &str, steps: &[StepRecord<'_>]) -> usize {
+        let count = self.log_frames;
+        let Some(d) = self.demos.as_mut() else { return 0 };
+        let r = d.replay.get_or_insert_with(|| Box::new(Replay::new(d.cfg.clone())));
+        let first = r.next_frame;
+        let stored = r.add_steps_here(actor, steps);
+        let added = r.next_frame - first;
+        r.note_log_run(first, count);
+        self.log_frames += added;
+        stored
+    }
+
+    /// The replay log's frame count: frames stored by both partitions.
+    #[must_use]
+    pub fn log_frame_end(&self) -> u64 {
+        self.log_frames
+    }
+
+    /// The oldest frame either partition holds, in the replay log's count (the count itself when
+    /// neither holds one): every frame before it has left the replay.
+    #[must_use]
+    pub fn log_first_live_frame(&self) -> u64 {
+        let oldest = |r: &Replay| (r.first_frame < r.next_frame).then(|| r.log_id(r.first_frame));
+        [oldest(self), self.demo_replay().and_then(oldest)].into_iter().flatten().min().unwrap_or(self.log_frames)
+    }
+
+    /// Records that frames from `first` on are numbered from `count` in the log's count.
+    fn note_log_run(&mut self, first: u64, count: u64) {
+        if self.log_runs.back().is_none_or(|&(f, c)| c + (first - f) != count) {
+            self.log_runs.push_back((first, count));
+        }
+        while self.log_runs.len() > 1 && self.log_runs[1].0 <= self.first_frame {
+            self.log_runs.pop_front();
+        }
+    }
+
+    /// Frame `id`'s number in the replay log's count.
+    fn log_id(&self, id: u64) -> u64 {
+        let &(f, c) = self.log_runs.iter().rev().find(|(f, _)| *f <= id).unwrap_or(&(0, 0));
+        c + (id - f)
     }
 
     /// Transitions stored (and sampleable).
@@ -272,12 +396,18 @@ impl Replay {
     /// Forgets where every stream stood.
     pub fn end_all_streams(&mut self) {
         self.streams.clear();
+        if let Some(r) = self.demos.as_mut().and_then(|d| d.replay.as_mut()) {
+            r.streams.clear();
+        }
     }
 
     /// Forgets where the streams of `actor` stood (its session ended): its next steps start
     /// afresh.
     pub fn end_streams_of(&mut self, actor: &str) {
         self.streams.retain(|(a, _), _| a != actor);
+        if let Some(r) = self.demos.as_mut().and_then(|d| d.replay.as_mut()) {
+            r.streams.retain(|(a, _), _| a != actor);
+        }
     }
 
     /// Capacity in transitions.
@@ -286,11 +416,11 @@ impl Replay {
         self.cfg.capacity
     }
 
-    /// Bytes in use (frames held and transitions).
+    /// Bytes in use (frames held and transitions, of both partitions).
     #[must_use]
     pub fn bytes(&self) -> u64 {
         let frames = (self.next_frame - self.first_frame) * stored_frame_cost(&self.cfg);
-        frames + self.transitions.len() as u64 * TRANSITION_BYTES
+        frames + self.transitions.len() as u64 * TRANSITION_BYTES + self.demo_replay().map_or(0, Replay::bytes)
     }
 
     /// Frames held.
@@ -302,6 +432,15 @@ impl Replay {
     /// Adds the steps of one stream of `actor`, in order, and returns the transitions formed.
     /// Steps must already be validated (image size, finite numbers, action range).
     pub fn add_steps(&mut self, actor: &str, steps: &[StepRecord<'_>]) -> usize {
+        let (first, count) = (self.next_frame, self.log_frames);
+        let stored = self.add_steps_here(actor, steps);
+        self.log_frames += self.next_frame - first;
+        self.note_log_run(first, count);
+        stored
+    }
+
+    /// [`Self::add_steps`] to this partition's own ring and FIFO.
+    fn add_steps_here(&mut self, actor: &str, steps: &[StepRecord<'_>]) -> usize {
         let mut stored = 0;
         for s in steps {
             let key = (actor.to_owned(), s.env);
@@ -610,8 +749,61 @@ impl Replay {
         Some(out)
     }
 
-    /// Sets the priorities of sampled slots from their |TD errors| (prioritized replay only).
+    /// Samples `n` transitions, each from the demonstrations with probability `demo_share`
+    /// while there are any (the demonstrations last in the sample, [`Sample::demos`]), else from
+    /// the agent's experience. With no demonstrations or a share of 0 it is [`Self::sample`].
+    /// `None` when the agent partition is empty.
+    pub fn sample_mixed(&mut self, n: usize, demo_share: f32) -> Option<Sample> {
+        let capacity = self.cfg.capacity;
+        let Some(d) = self.demos.as_mut().filter(|d| demo_share > 0.0 && d.replay.as_ref().is_some_and(|r| !r.is_empty())) else {
+            return self.sample(n);
+        };
+        if self.transitions.len() == self.dead {
+            return None;
+        }
+        let k = (0..n).filter(|_| d.mix_rng.random::<f32>() < demo_share).count();
+        let demos = Self::sample_partition(d, k, capacity);
+        let mut s = self.sample(n - k)?;
+        s.append(demos);
+        Some(s)
+    }
+
+    /// Samples `n` demonstrations alone (pre-training); `None` when there are none.
+    pub fn sample_demos(&mut self, n: usize) -> Option<Sample> {
+        let capacity = self.cfg.capacity;
+        let d = self.demos.as_mut().filter(|d| d.replay.as_ref().is_some_and(|r| !r.is_empty()))?;
+        Some(Self::sample_partition(d, n, capacity))
+    }
+
+    /// `n` samples of a non-empty demonstration partition, their slots offset by `offset`.
+    fn sample_partition(d: &mut Demos, n: usize, offset: usize) -> Sample {
+        let r = d.replay.as_mut().expect("a demonstration partition");
+        let mut s = r.sample(n).expect("a non-empty demonstration partition");
+        s.slots.iter_mut().for_each(|slot| *slot += offset);
+        s.demos = n;
+        s
+    }
+
+    /// Sets the priorities of sampled slots from their |TD errors| (prioritized replay only);
+    /// slots from the demonstration partition are its own.
     pub fn update_priorities(&mut self, slots: &[usize], td_abs: &[f32]) {
+        let capacity = self.cfg.capacity;
+        if let Some(r) = self.demos.as_mut().and_then(|d| d.replay.as_mut())
+            && slots.iter().any(|&s| s >= capacity)
+        {
+            let (mut ds, mut dt, mut os, mut ot) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+            for (&slot, &e) in slots.iter().zip(td_abs) {
+                if slot >= capacity {
+                    ds.push(slot - capacity);
+                    dt.push(e);
+                } else {
+                    os.push(slot);
+                    ot.push(e);
+                }
+            }
+            r.update_priorities(&ds, &dt);
+            return self.update_priorities(&os, &ot);
+        }
         let Some(tree) = self.priorities.as_mut() else { return };
         for (&slot, &e) in slots.iter().zip(td_abs) {
             let p = e.abs() + 1e-3;
@@ -1062,6 +1254,122 @@ mod tests {
             }
             assert!(sampled > 0 && r.evicted() > 0, "n_step {n_step}: {sampled} sampled, {} evicted", r.evicted());
         }
+    }
+
+    /// Episodes of `len` steps on stream `env`, frames tagged with the stream (byte 0), so that
+    /// a sample says where it came from.
+    fn tagged_episode(env: u32, e: u64, len: u32, tag: u8) -> Vec<(Vec<u8>, StepRecord<'static>)> {
+        episode(e, len, true)
+            .into_iter()
+            .map(|(mut img, s)| {
+                img[0] = tag;
+                (img, StepRecord { env, ..s })
+            })
+            .collect()
+    }
+
+    fn add_demo(r: &mut Replay, steps: &[(Vec<u8>, StepRecord<'static>)]) -> usize {
+        let recs: Vec<StepRecord<'_>> = steps.iter().map(|(img, s)| StepRecord { image: img, ..s.clone() }).collect();
+        r.add_demo_steps("teacher", &recs)
+    }
+
+    /// The agent's experience overfills its partition (capacity 50) twenty times over and its
+    /// frame ring many times more, interleaved with demonstrations: every demonstration stays,
+    /// sampled with its own frames; the demonstration partition evicts FIFO among its own once
+    /// it is full itself, whatever the agent's partition does.
+    #[test]
+    fn demonstrations_are_never_evicted_by_the_agents_experience() {
+        for prioritized in [false, true] {
+            let mut r = Replay::new(ReplayConfig { prioritized, ..cfg(50) });
+            r.keep_demonstrations(40, 1 << 30);
+            assert_eq!(add_demo(&mut r, &tagged_episode(0, 0, 10, 200)), 10);
+            for e in 0..100 {
+                add(&mut r, &tagged_episode(0, e, 10, 1));
+                if e == 50 {
+                    assert_eq!(add_demo(&mut r, &tagged_episode(1, 0, 10, 201)), 10);
+                }
+            }
+            assert!(r.evicted() > 900, "the agent's partition overflowed: {}", r.evicted());
+            assert_eq!((r.len(), r.demo_len(), r.demo_evicted()), (50, 20, 0));
+            let s = r.sample_demos(400).unwrap();
+            assert_eq!(s.demos, 400);
+            assert!(s.images.chunks(4).all(|f| f[0] == 200 || f[0] == 201), "demonstrations keep their own frames");
+            assert!(s.slots.iter().all(|&k| k >= 50), "demonstration slots follow the agent's");
+            if prioritized {
+                r.update_priorities(&s.slots, &vec![0.5; 400]);
+            }
+            // Full, they leave FIFO among themselves: the first episode goes first.
+            for e in 1..4 {
+                add_demo(&mut r, &tagged_episode(1, e, 10, 201));
+            }
+            assert_eq!((r.demo_len(), r.demo_evicted()), (40, 10));
+            let s = r.sample_demos(400).unwrap();
+            assert!(s.images.chunks(4).all(|f| f[0] == 201), "the oldest demonstrations left first");
+        }
+    }
+
+    /// Each sample is a demonstration with probability `demo_share`: over 200 batches of 64 the
+    /// share is within 4 standard deviations (√(p(1−p)/12800) ≈ 0.004 at p = 0.25) of it; the
+    /// demonstrations come last in the batch and are the demonstration partition's.
+    #[test]
+    fn the_share_of_demonstrations_in_batches_is_the_configured_one() {
+        let mut r = Replay::new(cfg(1000));
+        r.keep_demonstrations(1000, 1 << 30);
+        add(&mut r, &tagged_episode(0, 0, 100, 1));
+        add_demo(&mut r, &tagged_episode(0, 0, 100, 200));
+        for p in [0.25f32, 0.5, 0.9] {
+            let (mut demos, mut all) = (0, 0);
+            for _ in 0..200 {
+                let s = r.sample_mixed(64, p).unwrap();
+                assert_eq!(s.actions.len(), 64);
+                for (k, f) in s.images.chunks(4).enumerate() {
+                    assert_eq!(f[0] == 200, k >= 64 - s.demos, "demonstrations last");
+                }
+                (demos, all) = (demos + s.demos, all + 64);
+            }
+            let share = demos as f64 / all as f64;
+            let sd = (f64::from(p) * (1.0 - f64::from(p)) / all as f64).sqrt();
+            assert!((share - f64::from(p)).abs() < 4.0 * sd, "share {share} for {p} (sd {sd})");
+        }
+        assert_eq!(r.sample_mixed(64, 0.0).unwrap().demos, 0);
+    }
+
+    /// Without demonstrations (none configured, or configured and none arrived), mixed sampling
+    /// is plain sampling draw for draw, and the log's frame count is the ring's.
+    #[test]
+    fn without_demonstrations_mixed_sampling_is_plain_sampling() {
+        let mut plain = Replay::new(cfg(100));
+        let mut mixed = Replay::new(cfg(100));
+        mixed.keep_demonstrations(100, 1 << 30);
+        let mut h = (0xcbf2_9ce4_8422_2325u64, 0xcbf2_9ce4_8422_2325u64);
+        for e in 0..40 {
+            add(&mut plain, &episode(e, 7, e % 2 == 0));
+            add(&mut mixed, &episode(e, 7, e % 2 == 0));
+            fingerprint(&mut h.0, &plain.sample(16).unwrap());
+            fingerprint(&mut h.1, &mixed.sample_mixed(16, 0.5).unwrap());
+            assert_eq!((mixed.log_frame_end(), mixed.log_first_live_frame()), (mixed.next_frame_id(), mixed.first_frame_id()));
+        }
+        assert_eq!(h.0, h.1);
+    }
+
+    /// The replay log's frame count runs over both partitions: the oldest live frame is the
+    /// older partition's oldest, counted where it was stored.
+    #[test]
+    fn the_log_counts_the_frames_of_both_partitions_in_order() {
+        let mut r = Replay::new(cfg(20));
+        r.keep_demonstrations(20, 1 << 30);
+        add(&mut r, &episode(0, 4, true)); // log frames 0..5
+        add_demo(&mut r, &episode(0, 4, true)); // 5..10
+        add(&mut r, &episode(1, 4, true)); // 10..15
+        assert_eq!((r.log_frame_end(), r.log_first_live_frame()), (15, 0));
+        // The agent's ring (20 + 2 + 64 frame slots) overwrites its first frames; the
+        // demonstrations' first frame, log frame 5, is then the oldest held.
+        for e in 2..40 {
+            add(&mut r, &episode(e, 4, true));
+        }
+        assert!(r.first_frame_id() > 0);
+        assert_eq!(r.log_first_live_frame(), 5);
+        assert_eq!(r.log_frame_end(), 15 + 38 * 5);
     }
 
     /// FNV-1a over everything a sample hands out, for comparing whole sampling runs.

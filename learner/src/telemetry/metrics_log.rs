@@ -82,6 +82,8 @@ pub fn episode_scalars(e: &EpisodeRecord) -> Vec<(String, Option<f64>)> {
 pub fn scalars(t: &TrainRecord) -> Vec<(&'static str, Option<f64>)> {
     vec![
         ("train/loss", t.loss),
+        ("train/margin_loss", t.margin_loss),
+        ("train/demo_batch_share", t.demo_batch_share),
         ("train/mean_q", t.mean_q),
         ("train/epsilon", Some(t.epsilon)),
         ("episodes/return_mean", t.episode_return_mean),

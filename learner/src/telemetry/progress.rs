@@ -67,7 +67,18 @@ pub fn line(session_secs: f64, s: &pb::StatusResponse) -> String {
         s.weights_version,
         s.replay_size,
         connected
-    ) + &stall_note(session_secs, s, connected)
+    ) + &demo_note(s)
+        + &stall_note(session_secs, s, connected)
+}
+
+/// The demonstrations, once there are any: how many the replay holds and their share of the last
+/// batches (with the margin loss once a batch held one).
+fn demo_note(s: &pb::StatusResponse) -> String {
+    if s.demo_replay_size == 0 {
+        return String::new();
+    }
+    let margin = if s.margin_loss.is_finite() { format!(", margin loss {:.3}", s.margin_loss) } else { String::new() };
+    format!("  demos {} ({:.0}% of batches{margin})", s.demo_replay_size, 100.0 * s.demo_batch_share)
 }
 
 /// A session younger than this is starting (actors connecting, the replay filling), not stalled.

@@ -147,6 +147,12 @@ pub struct TrainRecord {
     /// Mean versions the connected actors' weights are behind; `None` without actors.
     #[serde(default)]
     pub weights_lag_mean: Option<f64>,
+    /// DQfD's large-margin loss on demonstrations (smoothed, unweighted by λ), and the share of
+    /// demonstrations in the last batches; absent from runs without demonstrations.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub margin_loss: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub demo_batch_share: Option<f64>,
 }
 
 /// A metrics file that could not be read.

@@ -48,8 +48,28 @@ pub struct StatusReport {
     /// The ε schedule at the run's environment steps.
     pub epsilon: f64,
     pub episodes: EpisodesReport,
+    pub demonstrations: DemonstrationsReport,
     pub reliability: ReliabilityReport,
     pub actors: Vec<ActorReport>,
+}
+
+/// Demonstrations (`actor --demonstrate`) and what training takes of them.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct DemonstrationsReport {
+    /// Demonstration transitions received and stored over the run.
+    pub received: u64,
+    pub stored: u64,
+    /// Transitions in the demonstration partition now, and its capacity.
+    pub replay_size: u64,
+    pub replay_capacity: u64,
+    /// The share of demonstrations in the last 100 training batches.
+    pub batch_share: f64,
+    /// The configured share now (`agent.demo_share`, decayed); 0 while there are none.
+    pub share: f64,
+    /// DQfD's large-margin loss (smoothed); `null` before a batch held a demonstration.
+    pub margin_loss: Option<f64>,
+    /// Pre-training updates still to do.
+    pub pretrain_updates_left: u64,
 }
 
 /// The recent episodes.
@@ -102,6 +122,8 @@ pub struct ActorReport {
     pub epsilon: f32,
     /// Seconds its streams waited for the replay ratio (counted as each wait ends).
     pub held_secs: f64,
+    /// The driver it demonstrates with; empty for a learning actor.
+    pub demonstrator: String,
 }
 
 impl From<pb::StatusResponse> for StatusReport {
@@ -141,6 +163,14 @@ impl From<pb::StatusResponse> for StatusReport {
             env_steps,
             run_secs,
             held_secs,
+            demo_transitions_received,
+            demo_transitions_stored,
+            demo_replay_size,
+            demo_replay_capacity,
+            demo_batch_share,
+            demo_share,
+            margin_loss,
+            demo_pretrain_updates_left,
         } = s;
         let pb::EpisodeStats { window, mean_return, completion_rate, collision_rate, episodes_total } = episodes.unwrap_or_default();
         let finite = |x: f64| x.is_finite().then_some(x);
@@ -167,6 +197,16 @@ impl From<pb::StatusResponse> for StatusReport {
             mean_q: finite(mean_q),
             epsilon,
             episodes: EpisodesReport { total: episodes_total, window, mean_return, completion_rate, collision_rate },
+            demonstrations: DemonstrationsReport {
+                received: demo_transitions_received,
+                stored: demo_transitions_stored,
+                replay_size: demo_replay_size,
+                replay_capacity: demo_replay_capacity,
+                batch_share: demo_batch_share,
+                share: demo_share,
+                margin_loss: finite(margin_loss),
+                pretrain_updates_left: demo_pretrain_updates_left,
+            },
             reliability: ReliabilityReport {
                 durability,
                 replay_log_bytes,
@@ -202,6 +242,7 @@ impl From<pb::ActorStatus> for ActorReport {
             dropped_steps,
             epsilon,
             held_secs,
+            demonstrator,
         } = a;
         Self {
             actor_id,
@@ -218,6 +259,7 @@ impl From<pb::ActorStatus> for ActorReport {
             dropped_steps,
             epsilon,
             held_secs,
+            demonstrator,
         }
     }
 }
@@ -278,6 +320,11 @@ pub const EXPORTED: &[Exported] = &[
         "Seconds experience streams waited for training to catch up with the replay ratio, summed over streams.",
     ),
     gauge("/run_secs", "learner_run_seconds", "Seconds the run has trained, over all its sessions."),
+    counter("/demonstrations/received", "learner_demo_transitions_received", "Demonstration transitions received from demonstrators."),
+    counter("/demonstrations/stored", "learner_demo_transitions_stored", "Demonstration transitions stored in their replay partition."),
+    gauge("/demonstrations/replay_size", "learner_demo_replay_size", "Transitions in the replay's demonstration partition."),
+    gauge("/demonstrations/batch_share", "learner_demo_batch_share", "Share of demonstrations in the last 100 training batches."),
+    gauge("/demonstrations/margin_loss", "learner_margin_loss", "Recent large-margin loss on demonstrations (NaN before any)."),
 ];
 
 /// Each connected actor's metrics, labelled `actor` with its name.
@@ -305,6 +352,9 @@ pub const NOT_EXPORTED: &[(&str, &str)] = &[
     ("/reliability/checkpoint_error", "text"),
     ("/reliability/recent_refusal", "text"),
     ("/actors", "per actor: EXPORTED_PER_ACTOR and NOT_EXPORTED_PER_ACTOR"),
+    ("/demonstrations/replay_capacity", "configuration, not a measurement"),
+    ("/demonstrations/share", "configuration (agent.demo_share and its decay)"),
+    ("/demonstrations/pretrain_updates_left", "shown by `learner status`; a phase, over once it reaches 0"),
 ];
 
 /// An actor's fields Prometheus does not get, and why.
@@ -321,6 +371,7 @@ pub const NOT_EXPORTED_PER_ACTOR: &[(&str, &str)] = &[
     ("/registrations", "shown by `learner status`"),
     ("/dropped_steps", "shown by `learner status`"),
     ("/held_secs", "shown by `learner status`; sums to learner_held_seconds"),
+    ("/demonstrator", "text"),
 ];
 
 #[cfg(test)]

@@ -1,5 +1,6 @@
 //! The DQN update (Mnih et al. 2015): online and target networks, Huber loss on the TD error,
-//! Adam, gradient clipping by global norm, optional double-DQN targets and importance weights.
+//! Adam, gradient clipping by global norm, optional double-DQN targets and importance weights,
+//! and on demonstrations DQfD's large-margin loss (Hester et al. 2018) added to the TD loss.
 //! The networks run on the fast CPU implementation ([`crate::fastnet`]).
 
 use agent::NetShape;
@@ -23,6 +24,8 @@ pub struct Batch {
     pub discounts: Vec<f32>,
     /// Importance-sampling weights (all 1 for uniform replay).
     pub weights: Vec<f32>,
+    /// The last `demos` transitions are demonstrations: the large-margin loss applies to them.
+    pub demos: usize,
 }
 
 impl Batch {
@@ -48,6 +51,9 @@ pub struct UpdateStats {
     pub td_abs: Vec<f32>,
     /// Global gradient norm before clipping.
     pub grad_norm: f32,
+    /// The large-margin loss J_E, mean over the batch's demonstrations (unweighted by λ); none
+    /// without demonstrations.
+    pub margin_loss: Option<f32>,
 }
 
 /// The learning agent: online and target parameters, the optimizer, and the network's buffers.
@@ -68,6 +74,10 @@ pub struct Dqn {
     /// Polyak averaging of the target after every update; 0 copies it every
     /// `target_update_period` updates instead.
     pub target_tau: f32,
+    /// DQfD's margin l (`agent.demo_margin`).
+    pub demo_margin: f32,
+    /// Weight λ of the large-margin loss (`agent.demo_margin_weight`; 0: off).
+    pub demo_margin_weight: f32,
 }
 
 impl Dqn {
@@ -100,6 +110,8 @@ impl Dqn {
             updates: 0,
             target_update_period: cfg.target_update_period,
             target_tau: cfg.target_tau,
+            demo_margin: cfg.demo_margin,
+            demo_margin_weight: cfg.demo_margin_weight,
         }
     }
 
@@ -139,6 +151,7 @@ impl Dqn {
             // d/dq of the batch mean of w·huber(q − y).
             dq[k] = weight * td.clamp(-self.huber_delta, self.huber_delta) / n as f32;
         }
+        let margin_loss = add_margin_loss(self.demo_margin, self.demo_margin_weight, a, q, b, &mut dq, &mut loss);
         self.net.backward(&self.online, &dq, &mut self.grads);
         let grad_norm = self.adam.step(&mut self.online, &self.grads, self.grad_clip_norm, self.net.threads());
         self.updates += 1;
@@ -147,7 +160,7 @@ impl Dqn {
         } else if self.updates.is_multiple_of(self.target_update_period) {
             self.sync_target();
         }
-        UpdateStats { loss: (loss / n as f64) as f32, mean_q: (q_sum / n as f64) as f32, td_abs, grad_norm }
+        UpdateStats { loss: (loss / n as f64) as f32, mean_q: (q_sum / n as f64) as f32, td_abs, grad_norm, margin_loss }
     }
 
     /// Copies the online parameters into the target network.
@@ -164,6 +177,46 @@ impl Dqn {
             }
         }
     }
+}
+
+/// Adds λ·J_E/n for each demonstration of the batch to `loss` (a sum over the batch, as the
+/// TD loss's) and its gradient to `dq`, where J_E = max_a [Q(s,a) + l(a_E,a)] − Q(s,a_E),
+/// l = `margin` for a ≠ a_E and 0 for a_E. Its gradient is +1 at the maximising action
+/// and −1 at a_E (nothing when a_E maximises). Returns the mean J_E over the demonstrations.
+fn add_margin_loss(margin: f32, weight: f32, a: usize, q: &[f32], b: &Batch, dq: &mut [f32], loss: &mut f64) -> Option<f32> {
+    let n = b.len();
+    if b.demos == 0 {
+        return None;
+    }
+    let scale = weight / n as f32;
+    let mut sum = 0f64;
+    for i in n - b.demos..n {
+        let row = &q[i * a..(i + 1) * a];
+        let demonstrated = b.actions[i] as usize;
+        let (best, value) = margin_argmax(row, demonstrated, margin);
+        let j = value - row[demonstrated];
+        sum += f64::from(j);
+        if weight > 0.0 && best != demonstrated {
+            *loss += f64::from(weight * j);
+            dq[i * a + best] += scale;
+            dq[i * a + demonstrated] -= scale;
+        }
+    }
+    Some((sum / b.demos as f64) as f32)
+}
+
+/// The action maximising Q(s,a) + l(a_E,a) over a row of Q values, and that maximum (the first
+/// action of a tie; `demonstrated` wins a tie, so J_E is 0 there and has no gradient).
+#[must_use]
+pub fn margin_argmax(row: &[f32], demonstrated: usize, margin: f32) -> (usize, f32) {
+    let mut best = (demonstrated, row[demonstrated]);
+    for (k, &x) in row.iter().enumerate() {
+        let v = if k == demonstrated { x } else { x + margin };
+        if v > best.1 {
+            best = (k, v);
+        }
+    }
+    best
 }
 
 /// Huber loss: ½x² for |x| ≤ δ, δ(|x| − ½δ) beyond.
@@ -192,7 +245,56 @@ mod tests {
             next_scalars: vec![0.0; 2 * n],
             discounts: discounts.to_vec(),
             weights: vec![1.0; n],
+            demos: 0,
         }
+    }
+
+    /// J_E by hand: Q = (1.0, 0.5, 0.9), demonstrated action 1, margin 0.8: Q + l = (1.8, 0.5,
+    /// 1.7), max 1.8 at action 0, J_E = 1.8 − 0.5 = 1.3. With margin 0.3: (1.3, 0.5, 1.2) → 0.8.
+    /// Demonstrated action 0 with margin 0.05: (1.0, 0.55, 0.95) → the demonstration itself, 0.
+    #[test]
+    fn the_margin_loss_matches_hand_computation() {
+        let row = [1.0f32, 0.5, 0.9];
+        let (best, v) = margin_argmax(&row, 1, 0.8);
+        assert_eq!(best, 0);
+        assert!((v - row[1] - 1.3).abs() < 1e-6, "{}", v - row[1]);
+        let (best, v) = margin_argmax(&row, 1, 0.3);
+        assert!(best == 0 && (v - row[1] - 0.8).abs() < 1e-6);
+        assert_eq!(margin_argmax(&row, 0, 0.05), (0, 1.0));
+    }
+
+    /// The update's margin term on a real network: the reported J_E is the hand formula applied to
+    /// the online network's Q values; its gradient is λ/n at the maximising action and −λ/n at the
+    /// demonstrated one, so the loss (TD + λ·J_E/n) and the gradient norm grow with λ, and λ = 0
+    /// leaves the update exactly as without demonstrations.
+    #[test]
+    fn the_update_adds_the_margin_loss_on_demonstrations_only() {
+        let mut b = batch(&[0.0, 0.0, 0.0, 0.0], &[0.0; 4]);
+        let cfg = |weight: f32| AgentConfig { demo_margin: 0.8, demo_margin_weight: weight, grad_clip_norm: 1e9, ..AgentConfig::default() };
+        // The last two are demonstrations; make each demonstrate its worse action.
+        b.demos = 2;
+        let mut probe = Dqn::new(shape(), &cfg(1.0));
+        let q = probe.q_values(&b.images, &b.scalars);
+        for i in 2..4 {
+            b.actions[i] = if q[2 * i] < q[2 * i + 1] { 0 } else { 1 };
+        }
+        let expected: f32 = (2..4)
+            .map(|i| {
+                let (d, other) = (b.actions[i] as usize, 1 - b.actions[i] as usize);
+                (q[2 * i + other] + 0.8).max(q[2 * i + d]) - q[2 * i + d]
+            })
+            .sum::<f32>()
+            / 2.0;
+        let with = Dqn::new(shape(), &cfg(1.0)).update(&b);
+        let margin = with.margin_loss.unwrap();
+        assert!((margin - expected).abs() < 1e-5, "{margin} vs {expected} (by hand from the Q values)");
+        assert!(expected > 0.8, "each demonstrated action is the worse one: J_E > l");
+        let off = Dqn::new(shape(), &cfg(0.0)).update(&b);
+        let plain = Dqn::new(shape(), &cfg(1.0)).update(&Batch { demos: 0, ..b.clone() });
+        assert_eq!((off.loss, off.grad_norm), (plain.loss, plain.grad_norm), "λ = 0 is the update without demonstrations");
+        assert_eq!(plain.margin_loss, None);
+        // Loss: the TD part plus λ·ΣJ_E/n = 1 · (2·expected)/4.
+        assert!((with.loss - (plain.loss + expected / 2.0)).abs() < 1e-5, "{} vs {} + {}", with.loss, plain.loss, expected / 2.0);
     }
 
     #[test]

@@ -12,7 +12,7 @@ use std::time::{Duration, Instant};
 
 use agent::backoff::Backoff;
 
-use crate::shared_state::{PublishedWeights, Shared};
+use crate::shared_state::{DEMO_SHARE_WINDOW, PublishedWeights, Shared};
 use crate::storage::checkpoint;
 use crate::storage::replay::Sample;
 use crate::training::dqn::{Batch, Dqn};
@@ -41,6 +41,7 @@ pub fn make_batch(cfg: &RunConfig, s: Sample) -> Batch {
         rewards: s.rewards,
         discounts: s.discounts,
         weights: s.weights,
+        demos: s.demos,
     }
 }
 
@@ -121,8 +122,8 @@ pub fn run(shared: &Arc<Shared>, mut dqn: Dqn, run_dir: &std::path::Path) -> any
     // Where the server set none (a caller that starts this loop itself), the count starts here.
     shared.ratio_session.lock().expect("ratio session lock").get_or_insert((stored_at_start, dqn.updates));
     let _clear = ClearBaselineOnExit(shared);
-    let mut loss_ema: Option<f64> = None;
-    let mut q_ema: Option<f64> = None;
+    let mut smoothed = Smoothed::default();
+    pretrain(shared, &mut dqn, &mut smoothed, &mut checkpoints, run_dir, interval);
     while !shared.stopping() {
         checkpoints.tick(shared, &dqn, run_dir, interval);
         let (len, stored) = {
@@ -141,21 +142,9 @@ pub fn run(shared: &Arc<Shared>, mut dqn: Dqn, run_dir: &std::path::Path) -> any
             wait_for_data(shared);
             continue;
         }
-        let Some(sample) = shared.replay.lock().expect("replay lock").sample(a.batch_size) else { continue };
-        let slots = if a.prioritized_replay { sample.slots.clone() } else { Vec::new() };
-        let stats = dqn.update(&make_batch(&shared.cfg, sample));
-        if a.prioritized_replay {
-            shared.replay.lock().expect("replay lock").update_priorities(&slots, &stats.td_abs);
-        }
-        let smooth = |ema: Option<f64>, x: f32| Some(ema.map_or(f64::from(x), |e| 0.95 * e + 0.05 * f64::from(x)));
-        loss_ema = smooth(loss_ema, stats.loss);
-        q_ema = smooth(q_ema, stats.mean_q);
-        {
-            let mut s = shared.stats.lock().expect("stats lock");
-            s.loss = loss_ema;
-            s.mean_q = q_ema;
-        }
-        shared.counters.lock().expect("counters lock").learner_step = dqn.updates;
+        let share = shared.cfg.demo_share(shared.counters.lock().expect("counters lock").env_steps);
+        let Some(sample) = shared.replay.lock().expect("replay lock").sample_mixed(a.batch_size, share) else { continue };
+        train_on(shared, &mut dqn, sample, &mut smoothed);
         // The first held batch that the ratio allows goes through now, not at some later look.
         if shared.may_store_a_batch() {
             shared.backpressure.wake();
@@ -167,6 +156,103 @@ pub fn run(shared: &Arc<Shared>, mut dqn: Dqn, run_dir: &std::path::Path) -> any
         }
     }
     Ok(dqn)
+}
+
+/// The smoothed measurements of the updates, for Status and the metrics.
+#[derive(Debug, Default)]
+struct Smoothed {
+    loss: Option<f64>,
+    mean_q: Option<f64>,
+    margin_loss: Option<f64>,
+    /// (demonstrations, samples) of the last batches.
+    batches: std::collections::VecDeque<(usize, usize)>,
+}
+
+/// One update on `sample`: priorities, the smoothed measurements, the learner step.
+fn train_on(shared: &Shared, dqn: &mut Dqn, sample: Sample, m: &mut Smoothed) {
+    let prioritized = shared.cfg.agent.prioritized_replay;
+    let slots = if prioritized { sample.slots.clone() } else { Vec::new() };
+    let (demos, n) = (sample.demos, sample.actions.len());
+    let stats = dqn.update(&make_batch(&shared.cfg, sample));
+    if prioritized {
+        shared.replay.lock().expect("replay lock").update_priorities(&slots, &stats.td_abs);
+    }
+    let smooth = |ema: Option<f64>, x: f32| Some(ema.map_or(f64::from(x), |e| 0.95 * e + 0.05 * f64::from(x)));
+    m.loss = smooth(m.loss, stats.loss);
+    m.mean_q = smooth(m.mean_q, stats.mean_q);
+    if let Some(j) = stats.margin_loss {
+        m.margin_loss = smooth(m.margin_loss, j);
+    }
+    if m.batches.len() == DEMO_SHARE_WINDOW {
+        m.batches.pop_front();
+    }
+    m.batches.push_back((demos, n));
+    {
+        let (d, all) = m.batches.iter().fold((0, 0), |(d, all), &(x, y)| (d + x, all + y));
+        let mut s = shared.stats.lock().expect("stats lock");
+        s.loss = m.loss;
+        s.mean_q = m.mean_q;
+        s.margin_loss = m.margin_loss;
+        s.demo_batch_share = if all == 0 { 0.0 } else { d as f64 / all as f64 };
+    }
+    shared.counters.lock().expect("counters lock").learner_step = dqn.updates;
+}
+
+/// DQfD's pre-training: `agent.demo_pretrain_updates` updates on demonstrations alone, once the
+/// demonstration partition holds `min_replay` transitions (or is full), before the agent's
+/// experience is trained on (a resumed run does those its checkpoint has not done). Its updates
+/// are not the replay ratio's: they are added to the count the ratio starts from.
+fn pretrain(
+    shared: &Shared,
+    dqn: &mut Dqn,
+    m: &mut Smoothed,
+    checkpoints: &mut CheckpointSchedule,
+    run_dir: &std::path::Path,
+    interval: Duration,
+) {
+    let a = &shared.cfg.agent;
+    let ready = a.min_replay.min(a.demo_capacity);
+    if dqn.updates < a.demo_pretrain_updates {
+        tracing::info!(
+            updates = a.demo_pretrain_updates - dqn.updates,
+            demonstrations_needed = ready,
+            "waiting for demonstrations to pre-train on (actor --demonstrate); the agent's experience is trained on after"
+        );
+    }
+    let mut announced = false;
+    while dqn.updates < a.demo_pretrain_updates && !shared.stopping() {
+        checkpoints.tick(shared, dqn, run_dir, interval);
+        if shared.replay.lock().expect("replay lock").demo_len() < ready.max(1) {
+            wait_for_data(shared);
+            continue;
+        }
+        if !std::mem::replace(&mut announced, true) {
+            tracing::info!(updates = a.demo_pretrain_updates - dqn.updates, "pre-training on demonstrations");
+        }
+        let Some(sample) = shared.replay.lock().expect("replay lock").sample_demos(a.batch_size) else { continue };
+        train_on(shared, dqn, sample, m);
+        {
+            let mut session = shared.ratio_session.lock().expect("ratio session lock");
+            if let Some((_, updates)) = session.as_mut() {
+                *updates += 1;
+            }
+            if let Some(b) = shared.ratio_baseline.lock().expect("ratio baseline lock").as_mut() {
+                b.updates_at_start += 1;
+            }
+        }
+        shared.stats.lock().expect("stats lock").pretrain_updates_left = a.demo_pretrain_updates - dqn.updates;
+        if dqn.updates.is_multiple_of(a.publish_every_updates)
+            && let Err(e) = publish(shared, dqn)
+        {
+            tracing::error!(error = %format!("{e:#}"), "publishing weights failed; retried at the next publication");
+        }
+        if dqn.updates == a.demo_pretrain_updates {
+            tracing::info!(learner_step = dqn.updates, "pre-training on demonstrations done");
+            if let Err(e) = publish(shared, dqn) {
+                tracing::error!(error = %format!("{e:#}"), "publishing weights failed; retried at the next publication");
+            }
+        }
+    }
 }
 
 /// Clears the replay ratio's baseline when the training thread ends, however it ends: nothing is

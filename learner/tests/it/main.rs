@@ -2,6 +2,7 @@
 
 mod bounds;
 mod corridor;
+mod demonstrations;
 mod metrics;
 mod reliability;
 mod service;

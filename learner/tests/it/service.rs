@@ -50,7 +50,16 @@ fn steps(episode: u64, t0: u32, n: u32, image_bytes: usize) -> Vec<pb::Step> {
 }
 
 fn batch(actor: &str, seq: u64, steps: Vec<pb::Step>) -> pb::ExperienceBatch {
-    pb::ExperienceBatch { actor_id: actor.into(), seq, steps, episodes: vec![], weights_version: 1, epsilon: 0.5, dropped_steps: 0 }
+    pb::ExperienceBatch {
+        actor_id: actor.into(),
+        seq,
+        steps,
+        episodes: vec![],
+        weights_version: 1,
+        epsilon: 0.5,
+        dropped_steps: 0,
+        demonstration: false,
+    }
 }
 
 /// Sends batches on one stream; returns each batch's outcome (ack or error code and message).

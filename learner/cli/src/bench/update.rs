@@ -32,6 +32,7 @@ fn random_batch(shape: &NetShape, batch: usize) -> Batch {
         rewards: floats(batch),
         discounts: vec![0.99; batch],
         weights: vec![1.0; batch],
+        demos: 0,
     }
 }
 

@@ -112,7 +112,8 @@ pub fn plot_runs(run_dirs: &[PathBuf], out: &Path, opts: &PlotOptions) -> Result
 ///    over `opts.smoothing` episodes (over full windows only; a run shorter than twice the window
 ///    uses half its length), widened to every episode of the last grid cell when that holds more
 ///    (dense runs do not alias);
-/// 2. "Loss" from `train.jsonl` (log scale if all values are positive);
+/// 2. "Loss" from `train.jsonl` (log scale if all values are positive), with, for runs that
+///    trained on demonstrations, their large-margin loss (`margin_loss`) dashed beside it;
 /// 3. "Mean Q" from `train.jsonl`;
 /// 4. with any `eval.jsonl`, the route types the periodic greedy evaluations mastered (a single
 ///    run's evaluations marked with dots);
@@ -175,6 +176,7 @@ pub fn plot_groups(groups: &[RunGroup], out: &Path, opts: &PlotOptions) -> Resul
     for (i, ((group, group_runs), label)) in groups.iter().zip(&runs).zip(labels).enumerate() {
         let colour = COLOURS[i % COLOURS.len()];
         let (mut return_values, mut loss_values, mut q_values, mut eval_values) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+        let mut margin_values = Vec::new();
         // Per hazard kind, per run: the shares arrived and collided.
         let mut arrived_values: Vec<Vec<Vec<Option<f64>>>> = vec![Vec::new(); kinds.len()];
         let mut collided_values: Vec<Vec<Vec<Option<f64>>>> = vec![Vec::new(); kinds.len()];
@@ -193,6 +195,9 @@ pub fn plot_groups(groups: &[RunGroup], out: &Path, opts: &PlotOptions) -> Resul
             };
             loss_values.push(train_values(|t| t.loss));
             q_values.push(train_values(|t| t.mean_q));
+            if run.train.iter().any(|t| t.margin_loss.is_some()) {
+                margin_values.push(train_values(|t| t.margin_loss));
+            }
             let eval_points: Vec<(f64, f64)> =
                 run.eval.iter().map(|e| (x.of(e.time_secs, e.env_steps), f64::from(e.route_types_mastered))).collect();
             eval_values.push(resample(&smooth(&eval_points, 1, &grid), &grid));
@@ -250,6 +255,9 @@ pub fn plot_groups(groups: &[RunGroup], out: &Path, opts: &PlotOptions) -> Resul
         };
         returns.push(series(return_label, &return_values));
         loss.push(series(label.clone(), &loss_values));
+        if !margin_values.is_empty() {
+            loss.push(Series { dashed: true, ..series(format!("{label} margin loss (demonstrations)"), &margin_values) });
+        }
         mean_q.push(series(label.clone(), &q_values));
         for (panel, (arrived, collided)) in hazards.iter_mut().zip(arrived_values.iter().zip(&collided_values)) {
             panel.series.push(series(format!("{label} arrived"), arrived));

@@ -229,6 +229,7 @@ mod tests {
             next_scalars: vec![0.0; 2 * n],
             discounts: vec![0.9, 0.0, 0.9, 0.9],
             weights: vec![1.0; n],
+            demos: 0,
         }
     }
 
@@ -258,6 +259,8 @@ mod tests {
             // (about one random value in ten is): `elapsed_secs_bits` keeps it exact.
             elapsed_secs: 3969.3421758078052,
             replay_log_position: 17,
+            demo_transitions_received: 300,
+            demo_transitions_stored: 299,
         }
     }
 

@@ -1,6 +1,8 @@
 //! The replay log's bytes: a segment header, then records, each a header (magic, payload length,
 //! position, payload CRC-32, header CRC-32) and a payload (the actor, the episodes it finished, and
-//! its steps with their frames, each frame once, and vector sensor readings). Little-endian throughout. A record is valid
+//! its steps with their frames, each frame once, and vector sensor readings). Little-endian throughout.
+//! A step's flags byte holds terminated (bit 0), truncated (bit 1) and demonstration (bit 2, set on
+//! every step of a demonstrator's batch; logs written before demonstrations never set it). A record is valid
 //! only if both checksums match, so a write torn by a crash is recognised and cut off.
 
 use std::borrow::Cow;
@@ -56,7 +58,12 @@ pub struct Record<'a> {
     /// Episode summaries the batch carried (for the episode counter).
     pub episodes: u32,
     pub steps: Vec<StepRecord<'a>>,
+    /// The batch is a demonstrator's: its steps go to the replay's demonstration partition.
+    pub demonstration: bool,
 }
+
+/// A step's flags bit that marks a demonstration.
+const DEMONSTRATION: u8 = 4;
 
 /// The segment header for steps of `shape`.
 #[must_use]
@@ -80,6 +87,17 @@ pub fn read_segment_header(bytes: &[u8]) -> Result<StepShape, String> {
 /// A batch's payload.
 #[must_use]
 pub fn encode(actor: &str, episodes: u32, steps: &[StepRecord<'_>]) -> Vec<u8> {
+    encode_batch(actor, episodes, steps, false)
+}
+
+/// A demonstrator's batch's payload: [`encode`], every step marked as a demonstration.
+#[must_use]
+pub fn encode_demonstrations(actor: &str, episodes: u32, steps: &[StepRecord<'_>]) -> Vec<u8> {
+    encode_batch(actor, episodes, steps, true)
+}
+
+fn encode_batch(actor: &str, episodes: u32, steps: &[StepRecord<'_>], demonstration: bool) -> Vec<u8> {
+    let demo = if demonstration { DEMONSTRATION } else { 0 };
     let frame = steps.first().map_or(0, |s| s.image.len());
     let mut out = Vec::with_capacity(2 + actor.len() + 8 + steps.len() * (STEP_FIXED + frame));
     let name = &actor.as_bytes()[..actor.len().min(u16::MAX as usize)];
@@ -95,7 +113,7 @@ pub fn encode(actor: &str, episodes: u32, steps: &[StepRecord<'_>]) -> Vec<u8> {
         for x in [s.reward, s.speed, s.d].into_iter().chain(s.path) {
             out.extend_from_slice(&x.to_le_bytes());
         }
-        out.push(u8::from(s.terminated) | (u8::from(s.truncated) << 1));
+        out.push(u8::from(s.terminated) | (u8::from(s.truncated) << 1) | demo);
         out.extend_from_slice(s.image);
         for x in s.vector.iter() {
             out.extend_from_slice(&x.to_le_bytes());
@@ -115,6 +133,7 @@ pub fn decode(payload: &[u8], shape: StepShape) -> Result<Record<'_>, String> {
         return Err(format!("{n} steps do not fit a payload of {} bytes", payload.len()));
     }
     let mut steps = Vec::with_capacity(n);
+    let mut demonstration = false;
     for _ in 0..n {
         let env = r.u32()?;
         let episode = u64::from_le_bytes(r.take(8)?.try_into().expect("8 bytes"));
@@ -126,6 +145,7 @@ pub fn decode(payload: &[u8], shape: StepShape) -> Result<Record<'_>, String> {
             *p = r.f32()?;
         }
         let flags = r.take(1)?[0];
+        demonstration |= flags & DEMONSTRATION != 0;
         let image = r.take(shape.frame_bytes)?;
         let vector = r.take(4 * shape.vector_len)?.chunks_exact(4).map(|b| f32::from_le_bytes(b.try_into().expect("4 bytes"))).collect();
         steps.push(StepRecord {
@@ -146,7 +166,7 @@ pub fn decode(payload: &[u8], shape: StepShape) -> Result<Record<'_>, String> {
     if r.at != payload.len() {
         return Err(format!("{} bytes after the last step", payload.len() - r.at));
     }
-    Ok(Record { actor, episodes, steps })
+    Ok(Record { actor, episodes, steps, demonstration })
 }
 
 /// The header of the record at `position` with `payload`.
@@ -260,7 +280,11 @@ mod tests {
         let steps: Vec<StepRecord<'_>> = imgs.iter().enumerate().map(|(t, i)| step(t as u32, i)).collect();
         let payload = encode("run-1-a0-0", 2, &steps);
         let back = decode(&payload, StepShape::frames(8)).unwrap();
-        assert_eq!(back, Record { actor: "run-1-a0-0", episodes: 2, steps: steps.clone() });
+        assert_eq!(back, Record { actor: "run-1-a0-0", episodes: 2, steps: steps.clone(), demonstration: false });
+        // A demonstrator's batch differs in the flag alone, which reads back.
+        let demo = encode_demonstrations("run-1-a0-0", 2, &steps);
+        assert_eq!(demo.len(), payload.len());
+        assert_eq!(decode(&demo, StepShape::frames(8)).unwrap(), Record { demonstration: true, ..back.clone() });
         assert!(decode(&payload, StepShape::frames(7)).is_err(), "another frame size does not parse");
 
         let mut seg = segment_header(StepShape::frames(8)).to_vec();
