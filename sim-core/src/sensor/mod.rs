@@ -111,10 +111,12 @@ impl VectorConfig {
         s
     }
 
-    /// Values in one observation for `variant`.
+    /// Values in one observation for `variant`: the sum over [`VectorConfig::segments`], worked
+    /// out without building them (every reading asks).
     #[must_use]
     pub fn len(&self, variant: Variant) -> usize {
-        self.segments(variant).iter().map(|s| s.count * s.fields).sum()
+        let path = if variant == Variant::Hybrid { PATH_FIELDS + 2 * self.waypoints as usize } else { 0 };
+        EGO_FIELDS + path + OBJECT_FIELDS * self.objects as usize + RAY_FIELDS * self.rays as usize
     }
 
     /// The layout in words, as checkpoints record it: the version and each segment,
@@ -214,4 +216,22 @@ pub fn without_planner(cfg: &VectorConfig, reading: &[f32]) -> Vec<f32> {
     let planner = PATH_FIELDS + 2 * cfg.waypoints as usize;
     debug_assert_eq!(reading.len(), cfg.len(Variant::Hybrid), "a hybrid reading");
     reading[..EGO_FIELDS].iter().chain(&reading[EGO_FIELDS + planner..]).copied().collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_length_is_the_sum_of_the_segments() {
+        for cfg in [VectorConfig::default(), VectorConfig { objects: 0, waypoints: 32, rays: 7, range: 20.0 }] {
+            for variant in [Variant::Hybrid, Variant::EndToEnd] {
+                assert_eq!(
+                    cfg.len(variant),
+                    cfg.segments(variant).iter().map(|s| s.count * s.fields).sum::<usize>(),
+                    "{cfg:?} {variant:?}"
+                );
+            }
+        }
+    }
 }
