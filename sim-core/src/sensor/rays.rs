@@ -72,8 +72,9 @@ pub fn clearance(surface: &SurfaceRaster) -> Vec<u8> {
 /// Raster cells per side of a block of [`EdgeClearance`].
 pub const BLOCK: usize = 4;
 
-/// Per block of `BLOCK`×`BLOCK` raster cells, the least [`clearance`] of its cells: small enough
-/// to stay in cache while a ray jumps across the map by it.
+/// Per block of `BLOCK`×`BLOCK` raster cells, the least [`clearance`] `m` of its cells: every
+/// cell within `m - 1` of the block is drivable. Small enough to stay in cache while a ray hops
+/// across the map by it.
 #[derive(Debug, Clone)]
 pub struct EdgeClearance {
     width: usize,
@@ -102,9 +103,15 @@ impl EdgeClearance {
     }
 }
 
-/// The distance from `o` along the unit `u` to the first cell off the drivable surface, at most
-/// `max` (0 when `o` is off it): stepping a cell at a time near the edge, and elsewhere jumping
-/// by the block's clearance (`edge` of `surface`), which never skips a cell off the road.
+/// How far past a box's side a ray is sampled to find the cell beyond it, cells: more than the
+/// rounding of a position on the largest raster, far less than a cell.
+const NUDGE: f32 = 1.0 / 64.0;
+
+/// The distance from `o` along the unit `u` to where it enters the first cell off the drivable
+/// surface (or leaves the raster), at most `max` (0 when `o` is off it). The ray crosses in one
+/// hop each box of cells known to be drivable: a block of `edge` with clearance `m` ≥ 1 and the
+/// `m - 1` cells around it, or next to the edge the one cell it is in; so it passes over no cell
+/// off the road, and the reading does not depend on where the hops land.
 #[must_use]
 pub fn edge_distance(surface: &SurfaceRaster, edge: &EdgeClearance, o: Vec2, u: Vec2, max: f32) -> f32 {
     let inv = 1.0 / surface.cell;
@@ -112,24 +119,34 @@ pub fn edge_distance(surface: &SurfaceRaster, edge: &EdgeClearance, o: Vec2, u: 
     let (w, h) = (surface.width, surface.height);
     let cells = surface.cells();
     let t_max = max * inv;
-    let mut t = 0.0f32;
+    // Parameter per cell of travel along each axis (infinite along an axis the ray does not move on).
+    let (kx, ky) = (1.0 / u.x.abs(), 1.0 / u.y.abs());
+    // `t`: where the ray entered the box it is in; `probe`: where it is sampled, just past `t`.
+    let (mut t, mut probe) = (0.0f32, 0.0f32);
     loop {
-        let (fx, fy) = (ox + u.x * t, oy + u.y * t);
+        let (fx, fy) = (ox + u.x * probe, oy + u.y * probe);
         if !(fx >= 0.0 && fy >= 0.0 && (fx as usize) < w && (fy as usize) < h) {
             return (t * surface.cell).min(max);
         }
         let (x, y) = (fx as usize, fy as usize);
-        let n = edge.at(x, y);
-        if n >= 2 {
-            t += f32::from(n - 1);
+        let m = usize::from(edge.at(x, y));
+        let (lo, hi) = if m >= 1 {
+            let (bx, by) = (x / BLOCK * BLOCK, y / BLOCK * BLOCK);
+            let r = m - 1;
+            ((bx as f32 - r as f32, by as f32 - r as f32), ((bx + BLOCK + r).min(w) as f32, (by + BLOCK + r).min(h) as f32))
         } else if Surface::from_u8(cells[y * w + x]).is_drivable() {
-            t += 1.0;
+            ((x as f32, y as f32), ((x + 1) as f32, (y + 1) as f32))
         } else {
             return (t * surface.cell).min(max);
-        }
+        };
+        // The box's side the ray leaves by (a NaN for an axis it does not move on loses the min).
+        let dx = if u.x > 0.0 { hi.0 - fx } else { fx - lo.0 } * kx;
+        let dy = if u.y > 0.0 { hi.1 - fy } else { fy - lo.1 } * ky;
+        t = probe + dx.min(dy);
         if t > t_max {
             return max;
         }
+        probe = t + NUDGE;
     }
 }
 
@@ -161,10 +178,12 @@ mod tests {
         assert_eq!(fine[20 * r.width + 130], 0);
         let c = EdgeClearance::new(&r);
         let o = Vec2::new(5.0, 5.0);
+        // Where the ray enters the first cell off the road (here the road's end) or leaves the
+        // raster (its side), exactly but for rounding.
         let ahead = edge_distance(&r, &c, o, Vec2::X, 50.0);
-        assert!((ahead - 25.0).abs() <= 0.25, "{ahead}");
+        assert!((ahead - 25.0).abs() <= 1e-3, "{ahead}");
         let left = edge_distance(&r, &c, o, Vec2::Y, 50.0);
-        assert!((left - 5.0).abs() <= 0.25, "{left}");
+        assert!((left - 5.0).abs() <= 1e-3, "{left}");
         assert_eq!(edge_distance(&r, &c, o, Vec2::Y, 3.0), 3.0);
         assert_eq!(edge_distance(&r, &c, Vec2::new(35.0, 5.0), Vec2::X, 50.0), 0.0);
         // Slanted: the same first cell as a walk one cell at a time along the ray.
@@ -173,7 +192,37 @@ mod tests {
             let u = Vec2::new(a.cos(), a.sin());
             let jumped = edge_distance(&r, &c, Vec2::new(7.3, 4.1), u, 50.0);
             let walked = (0..=400).map(|i| i as f32 * 0.125).find(|&t| !r.at(Vec2::new(7.3, 4.1) + u * t).is_drivable()).unwrap();
-            assert!((jumped - walked).abs() <= 0.4, "angle {a}: {jumped} vs {walked}");
+            assert!(jumped <= walked + 1e-3 && walked - jumped <= 0.125 + 1e-3, "angle {a}: {jumped} vs {walked}");
+        }
+    }
+
+    #[test]
+    fn the_road_edge_is_where_a_ray_first_enters_a_cell_off_the_road() {
+        // Roads at odd angles across each other: their edges cut cells anywhere.
+        let mut r = SurfaceRaster::new(Vec2::ZERO, Vec2::new(40.0, 40.0), 0.25);
+        let quads = [
+            [(2.0, 15.0), (38.0, 17.0), (38.0, 23.0), (2.0, 21.0)],
+            [(17.0, 2.0), (23.0, 2.0), (21.0, 38.0), (15.0, 38.0)],
+            [(5.0, 7.0), (8.0, 4.0), (35.0, 31.0), (32.0, 34.0)],
+        ];
+        for q in quads {
+            r.fill_convex(&q.map(|(x, y)| Vec2::new(x, y)), Surface::Road);
+        }
+        let c = EdgeClearance::new(&r);
+        let off = |p: Vec2| !r.at(p).is_drivable();
+        let step = r.cell / 32.0;
+        for o in [Vec2::new(10.0, 18.3), Vec2::new(19.1, 19.7), Vec2::new(20.2, 33.0), Vec2::new(12.4, 11.1)] {
+            for k in 0..90 {
+                let a = k as f32 * 0.07;
+                let u = Vec2::new(a.cos(), a.sin());
+                let got = edge_distance(&r, &c, o, u, 30.0);
+                // A walk in steps of a thirty-second of a cell finds nothing off the road before
+                // the reading, and the first thing it finds is within a step of it (unless the
+                // walk stepped over a corner the ray clips: then just past the reading is off).
+                let walked = (0..).map(|i| i as f32 * step).take_while(|&t| t <= 30.0).find(|&t| off(o + u * t)).unwrap_or(30.0);
+                let clipped = got < 30.0 && off(o + u * (got + r.cell / 64.0));
+                assert!(got <= walked + 1e-3 && (walked - got <= step + 1e-3 || clipped), "{o:?} angle {a}: {got} vs {walked}");
+            }
         }
     }
 }
