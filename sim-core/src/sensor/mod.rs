@@ -34,7 +34,7 @@ use crate::vehicle::{VehicleParams, VehicleState};
 
 use self::ego_path::{PathInput, write_ego, write_path};
 use self::objects::{CAMERA_AHEAD, OCCLUDER_MARGIN, Objects};
-use self::rays::{RayFan, edge_distance, obstacle_distance};
+use self::rays::{RayFan, Targets, edge_distance};
 use self::statics::StaticCache;
 
 /// The layout's name: actors send theirs at `Register`, checkpoints record it. Change it whenever
@@ -155,6 +155,7 @@ pub struct Sensor {
     statics: StaticCache,
     objects: Objects,
     fan: RayFan,
+    targets: Targets,
 }
 
 impl Sensor {
@@ -193,10 +194,10 @@ impl Sensor {
 
         let surface = &world.town.map.surface;
         let clearance = world.town.edge_clearance.get_or_init(|| rays::EdgeClearance::new(surface));
-        let boxes: [&[geometry::Box2]; 2] = [&self.objects.boxes, &self.statics.near];
+        self.targets.gather(ego.pos, range, &[&self.objects.boxes, &self.statics.near]);
         for (r, &u) in ray_out.chunks_exact_mut(RAY_FIELDS).zip(self.fan.directions(cfg.rays as usize)) {
             let u = Vec2::new(axis.x * u.x - axis.y * u.y, axis.y * u.x + axis.x * u.y);
-            r[0] = obstacle_distance(ego.pos, u, range, &boxes) / range;
+            r[0] = self.targets.distance(u, range) / range;
             r[1] = edge_distance(surface, clearance, ego.pos, u, range) / range;
         }
 

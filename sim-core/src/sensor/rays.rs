@@ -29,18 +29,41 @@ impl RayFan {
     }
 }
 
-/// The distance from `o` along the unit `u` to the nearest of `boxes`, at most `max`.
-#[must_use]
-pub fn obstacle_distance(o: Vec2, u: Vec2, max: f32, boxes: &[&[Box2]]) -> f32 {
-    let mut best = max;
-    for set in boxes {
-        for b in *set {
-            if let Some(t) = b.ray(o, u, best) {
-                best = t;
+/// The boxes that the obstacle rays from one origin may hit, each with its offset from the origin
+/// and that offset's squared length worked out once for all the rays.
+#[derive(Debug, Clone, Default)]
+pub struct Targets {
+    origin: Vec2,
+    seen: Vec<(Box2, Vec2, f32)>,
+}
+
+impl Targets {
+    /// Keeps of `boxes` those a ray from `o` of length `max` may reach: a box farther than that by
+    /// more than any rounding is hit by none (its entry would lie beyond `max`).
+    pub fn gather(&mut self, o: Vec2, max: f32, boxes: &[&[Box2]]) {
+        self.origin = o;
+        self.seen.clear();
+        for b in boxes.iter().flat_map(|set| set.iter()) {
+            let oc = b.centre - o;
+            let oc2 = oc.length_squared();
+            let reach = (max + b.radius) * (1.0 + 1e-4) + 1e-3;
+            if oc2 <= reach * reach {
+                self.seen.push((*b, oc, oc2));
             }
         }
     }
-    best
+
+    /// The distance along the unit `u` to the nearest box, at most `max`.
+    #[must_use]
+    pub fn distance(&self, u: Vec2, max: f32) -> f32 {
+        let mut best = max;
+        for (b, oc, oc2) in &self.seen {
+            if let Some(t) = b.ray_from(self.origin, u, best, *oc, *oc2) {
+                best = t;
+            }
+        }
+        best
+    }
 }
 
 /// Per raster cell, the chessboard distance in cells to the nearest cell off the drivable surface
@@ -51,19 +74,24 @@ pub fn obstacle_distance(o: Vec2, u: Vec2, max: f32, boxes: &[&[Box2]]) -> f32 {
 pub fn clearance(surface: &SurfaceRaster) -> Vec<u8> {
     let (w, h) = (surface.width, surface.height);
     let mut d: Vec<u8> = surface.cells().iter().map(|&c| if Surface::from_u8(c).is_drivable() { 255 } else { 0 }).collect();
-    let at = |d: &[u8], x: isize, y: isize| {
-        if x < 0 || y < 0 || x >= w as isize || y >= h as isize { 0 } else { d[y as usize * w + x as usize] }
-    };
-    for pass in [false, true] {
-        for k in 0..w * h {
-            let k = if pass { w * h - 1 - k } else { k };
-            if d[k] == 0 {
-                continue;
+    // Forward from the left and the row above, then backward from the right and the row below;
+    // cells beyond the raster count as off the road, so the border's cells are next to it.
+    for y in 0..h {
+        for x in 0..w {
+            let k = y * w + x;
+            if d[k] != 0 {
+                let m = if x == 0 || y == 0 || x + 1 == w { 0 } else { d[k - 1].min(d[k - w - 1]).min(d[k - w]).min(d[k - w + 1]) };
+                d[k] = d[k].min(m.saturating_add(1));
             }
-            let (x, y) = ((k % w) as isize, (k / w) as isize);
-            let s = if pass { 1 } else { -1 };
-            let m = [at(&d, x + s, y), at(&d, x + s, y + s), at(&d, x, y + s), at(&d, x - s, y + s)].into_iter().min().unwrap_or(0);
-            d[k] = d[k].min(m.saturating_add(1));
+        }
+    }
+    for y in (0..h).rev() {
+        for x in (0..w).rev() {
+            let k = y * w + x;
+            if d[k] != 0 {
+                let m = if x == 0 || y + 1 == h || x + 1 == w { 0 } else { d[k + 1].min(d[k + w + 1]).min(d[k + w]).min(d[k + w - 1]) };
+                d[k] = d[k].min(m.saturating_add(1));
+            }
         }
     }
     d
@@ -88,9 +116,10 @@ impl EdgeClearance {
         let fine = clearance(surface);
         let (width, height) = (surface.width.div_ceil(BLOCK), surface.height.div_ceil(BLOCK));
         let mut blocks = vec![255u8; width * height];
-        for (k, &c) in fine.iter().enumerate() {
-            let b = &mut blocks[(k / surface.width / BLOCK) * width + (k % surface.width) / BLOCK];
-            *b = (*b).min(c);
+        for (y, row) in fine.chunks_exact(surface.width).enumerate() {
+            for (b, cells) in blocks[y / BLOCK * width..][..width].iter_mut().zip(row.chunks(BLOCK)) {
+                *b = cells.iter().fold(*b, |m, &c| m.min(c));
+            }
         }
         Self { width, height, blocks }
     }
@@ -161,11 +190,16 @@ mod tests {
         let mut fan = RayFan::default();
         let dirs = fan.directions(4).to_vec();
         assert!((dirs[1] - Vec2::Y).length() < 1e-6, "the second of four rays points left");
-        let d: Vec<f32> = dirs.iter().map(|&u| obstacle_distance(Vec2::ZERO, u, 50.0, &[&wall])).collect();
+        let mut targets = Targets::default();
+        targets.gather(Vec2::ZERO, 50.0, &[&wall]);
+        let d: Vec<f32> = dirs.iter().map(|&u| targets.distance(u, 50.0)).collect();
         assert!((d[0] - 20.0).abs() < 1e-4, "{d:?}");
         assert_eq!(&d[1..], &[50.0, 50.0, 50.0]);
-        // Out of range: the ray's full length.
-        assert_eq!(obstacle_distance(Vec2::ZERO, Vec2::X, 15.0, &[&wall]), 15.0);
+        // Out of range: the ray's full length; out of every ray's reach, not even a target.
+        targets.gather(Vec2::ZERO, 15.0, &[&wall]);
+        assert_eq!(targets.distance(Vec2::X, 15.0), 15.0);
+        targets.gather(Vec2::new(-20.0, 0.0), 15.0, &[&wall]);
+        assert!(targets.seen.is_empty());
     }
 
     #[test]
@@ -196,9 +230,8 @@ mod tests {
         }
     }
 
-    #[test]
-    fn the_road_edge_is_where_a_ray_first_enters_a_cell_off_the_road() {
-        // Roads at odd angles across each other: their edges cut cells anywhere.
+    /// Roads at odd angles across each other over a 40 m square: their edges cut cells anywhere.
+    fn crossing_roads() -> SurfaceRaster {
         let mut r = SurfaceRaster::new(Vec2::ZERO, Vec2::new(40.0, 40.0), 0.25);
         let quads = [
             [(2.0, 15.0), (38.0, 17.0), (38.0, 23.0), (2.0, 21.0)],
@@ -208,6 +241,29 @@ mod tests {
         for q in quads {
             r.fill_convex(&q.map(|(x, y)| Vec2::new(x, y)), Surface::Road);
         }
+        r
+    }
+
+    #[test]
+    fn clearance_is_the_chessboard_distance_to_the_nearest_cell_off_the_road() {
+        // Checked against its definition, cell by cell: the nearest off-road cell or the border.
+        let r = crossing_roads();
+        let fine = clearance(&r);
+        let (w, h) = (r.width as isize, r.height as isize);
+        let off =
+            |x: isize, y: isize| x < 0 || y < 0 || x >= w || y >= h || !Surface::from_u8(r.cells()[(y * w + x) as usize]).is_drivable();
+        for (k, &c) in fine.iter().enumerate().step_by(7) {
+            let (x, y) = (k as isize % w, k as isize / w);
+            let want = (0..=255)
+                .find(|&n| (-n..=n).any(|i| off(x + i, y - n) || off(x + i, y + n) || off(x - n, y + i) || off(x + n, y + i)))
+                .unwrap_or(255);
+            assert_eq!(isize::from(c), want, "cell ({x}, {y})");
+        }
+    }
+
+    #[test]
+    fn the_road_edge_is_where_a_ray_first_enters_a_cell_off_the_road() {
+        let r = crossing_roads();
         let c = EdgeClearance::new(&r);
         let off = |p: Vec2| !r.at(p).is_drivable();
         let step = r.cell / 32.0;
