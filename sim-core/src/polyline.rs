@@ -11,6 +11,8 @@ pub struct Polyline {
     cum: Vec<f32>,
     /// Per run of [`BLOCK`] segments, a disc holding them (see [`Reach`]).
     blocks: Vec<Reach>,
+    /// Per segment, its heading (radians): every car's pose asks for it every step.
+    headings: Vec<f32>,
 }
 
 /// Segments per [`Reach`]: projections test a run's disc before its segments.
@@ -81,7 +83,8 @@ impl Polyline {
             cum.push(acc);
         }
         let blocks = (0..pts.len() - 1).step_by(BLOCK).map(|i| Reach::around(&pts[i..(i + BLOCK + 1).min(pts.len())])).collect();
-        Some(Self { points: pts, cum, blocks })
+        let headings = pts.windows(2).map(|w| heading_of(w[1] - w[0])).collect();
+        Some(Self { points: pts, cum, blocks, headings })
     }
 
     /// The vertices.
@@ -159,8 +162,7 @@ impl Polyline {
             seg -= 1;
         }
         let p = self.point_at_from(s, seg);
-        let h = heading_of(self.points[seg + 1] - self.points[seg]);
-        (p, h, seg)
+        (p, self.headings[seg], seg)
     }
 
     /// The closest point to `p` over the whole polyline.
