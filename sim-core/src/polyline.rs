@@ -9,6 +9,43 @@ pub struct Polyline {
     points: Vec<Vec2>,
     /// `cum[i]` = arc length from `points[0]` to `points[i]`.
     cum: Vec<f32>,
+    /// Per run of [`BLOCK`] segments, a disc holding them (see [`Reach`]).
+    blocks: Vec<Reach>,
+    /// Per segment, its heading (radians): every car's pose asks for it every step.
+    headings: Vec<f32>,
+}
+
+/// Segments per [`Reach`]: projections test a run's disc before its segments.
+const BLOCK: usize = 8;
+
+/// Relative slack of a [`Reach`]'s test. An f32 rounding is at most 6e-8 of the magnitudes
+/// involved and the exact scan rounds a handful of times, so a run the test rejects is farther
+/// than the best distance by far more than any rounding of that scan: skipping it changes no bit.
+const SLACK: f32 = 1e-5;
+
+/// A disc containing every point of a run of segments, its radius widened by [`SLACK`] of the
+/// coordinates so that a lower bound on the distance to the run's segments is safe under
+/// rounding.
+#[derive(Debug, Clone, Copy)]
+struct Reach {
+    centre: Vec2,
+    radius: f32,
+}
+
+impl Reach {
+    fn around(points: &[Vec2]) -> Self {
+        let (lo, hi) = points.iter().fold((points[0], points[0]), |(lo, hi), &p| (lo.min(p), hi.max(p)));
+        let centre = (lo + hi) * 0.5;
+        let r = points.iter().map(|&p| p.distance(centre)).fold(0.0f32, f32::max);
+        Self { centre, radius: r * (1.0 + SLACK) + SLACK * (centre.x.abs() + centre.y.abs() + 1.0) }
+    }
+
+    /// A lower bound on the distance from `p` to the run's segments, less the slack of `p`'s
+    /// coordinates (`p_slack`).
+    #[inline]
+    fn below(&self, p: Vec2, p_slack: f32) -> f32 {
+        p.distance(self.centre) - self.radius - p_slack
+    }
 }
 
 /// The closest point of a polyline to a query point.
@@ -45,7 +82,9 @@ impl Polyline {
             acc += w[0].distance(w[1]);
             cum.push(acc);
         }
-        Some(Self { points: pts, cum })
+        let blocks = (0..pts.len() - 1).step_by(BLOCK).map(|i| Reach::around(&pts[i..(i + BLOCK + 1).min(pts.len())])).collect();
+        let headings = pts.windows(2).map(|w| heading_of(w[1] - w[0])).collect();
+        Some(Self { points: pts, cum, blocks, headings })
     }
 
     /// The vertices.
@@ -123,8 +162,7 @@ impl Polyline {
             seg -= 1;
         }
         let p = self.point_at_from(s, seg);
-        let h = heading_of(self.points[seg + 1] - self.points[seg]);
-        (p, h, seg)
+        (p, self.headings[seg], seg)
     }
 
     /// The closest point to `p` over the whole polyline.
@@ -133,25 +171,67 @@ impl Polyline {
         self.project_range(p, 0, self.points.len() - 1)
     }
 
-    /// The closest point to `p` among segments `first..last` (clamped to the polyline).
+    /// The closest point to `p` among segments `first..last` (clamped to the polyline): the
+    /// first of the segments at the least distance.
+    ///
+    /// As a scan of every segment in order, but a run of segments whose disc lies farther than
+    /// a distance already found is skipped: the run nearest by its disc is scanned first, for
+    /// a good bound, then the runs before it and after it in order.
     #[must_use]
     pub fn project_range(&self, p: Vec2, first: usize, last: usize) -> Projection {
         let last = last.min(self.points.len() - 1);
         let first = first.min(last.saturating_sub(1));
-        let mut best = Projection { s: 0.0, lateral: 0.0, distance: f32::INFINITY, segment: first };
-        for i in first..last {
-            let (a, b) = (self.points[i], self.points[i + 1]);
+        let none = Best { proj: Projection { s: 0.0, lateral: 0.0, distance: f32::INFINITY, segment: first }, d2: f32::INFINITY };
+        if first >= last {
+            return none.proj;
+        }
+        let p_slack = SLACK * (p.x.abs() + p.y.abs());
+        let (k0, k1) = (first / BLOCK, (last - 1) / BLOCK + 1);
+        let run = |k: usize| (k * BLOCK).max(first)..((k + 1) * BLOCK).min(last);
+        let below = |k: usize| self.blocks[k].below(p, p_slack);
+        let far = |k: usize, best: &Best| below(k) > best.proj.distance * (1.0 + SLACK);
+        let start = (k0 + 1..k1).fold(k0, |m, k| if below(k) < below(m) { k } else { m });
+        let mut here = none;
+        self.scan(p, run(start), &mut here);
+        // The runs before `start`, in order; any tie with `here` goes to them (lower indices).
+        let mut before = none;
+        for k in k0..start {
+            if !far(k, &here) {
+                self.scan(p, run(k), &mut before);
+            }
+        }
+        let mut best = if before.proj.distance <= here.proj.distance { before } else { here };
+        for k in start + 1..k1 {
+            if !far(k, &best) {
+                self.scan(p, run(k), &mut best);
+            }
+        }
+        best.proj
+    }
+
+    /// Scans `segments` in order for one closer to `p` than `best` (strictly: the first of equals
+    /// stays).
+    #[inline]
+    fn scan(&self, p: Vec2, segments: std::ops::Range<usize>, best: &mut Best) {
+        let points = &self.points[segments.start..=segments.end];
+        let cum = &self.cum[segments.start..=segments.end];
+        for (j, (w, c)) in points.windows(2).zip(cum.windows(2)).enumerate() {
+            let (a, b) = (w[0], w[1]);
             let ab = b - a;
             let len2 = ab.length_squared();
             let t = ((p - a).dot(ab) / len2).clamp(0.0, 1.0);
             let q = a + ab * t;
-            let dist = q.distance(p);
-            if dist < best.distance {
-                let lateral = cross(ab, p - a) / len2.sqrt();
-                best = Projection { s: self.cum[i] + t * (self.cum[i + 1] - self.cum[i]), lateral, distance: dist, segment: i };
+            let d2 = (q - p).length_squared();
+            // sqrt is monotone: a segment no nearer in d² cannot be strictly nearer.
+            if d2 < best.d2 {
+                let dist = d2.sqrt();
+                if dist < best.proj.distance {
+                    let lateral = cross(ab, p - a) / len2.sqrt();
+                    best.proj = Projection { s: c[0] + t * (c[1] - c[0]), lateral, distance: dist, segment: segments.start + j };
+                    best.d2 = d2;
+                }
             }
         }
-        best
     }
 
     /// Points resampled every `spacing` metres from the start, the end always included.
@@ -163,6 +243,13 @@ impl Polyline {
         out.push(self.end());
         out
     }
+}
+
+/// A projection found so far and its squared distance.
+#[derive(Debug, Clone, Copy)]
+struct Best {
+    proj: Projection,
+    d2: f32,
 }
 
 #[cfg(test)]
@@ -204,6 +291,56 @@ mod tests {
             hint = seg;
             assert_eq!(p, pl.point_at(s), "s = {s}");
         }
+    }
+
+    /// The scan of every segment that `project_range` must match bit for bit.
+    fn scan_all(pl: &Polyline, p: Vec2, first: usize, last: usize) -> Projection {
+        let (pts, cum) = (pl.points(), &pl.cum);
+        let last = last.min(pts.len() - 1);
+        let first = first.min(last.saturating_sub(1));
+        let mut best = Projection { s: 0.0, lateral: 0.0, distance: f32::INFINITY, segment: first };
+        for i in first..last {
+            let (a, b) = (pts[i], pts[i + 1]);
+            let ab = b - a;
+            let len2 = ab.length_squared();
+            let t = ((p - a).dot(ab) / len2).clamp(0.0, 1.0);
+            let dist = (a + ab * t).distance(p);
+            if dist < best.distance {
+                let lateral = cross(ab, p - a) / len2.sqrt();
+                best = Projection { s: cum[i] + t * (cum[i + 1] - cum[i]), lateral, distance: dist, segment: i };
+            }
+        }
+        best
+    }
+
+    #[test]
+    fn skipping_runs_changes_no_projection() {
+        // A winding line far from the origin, with a stretch that doubles back over itself (ties)
+        // and points spaced as lanes' are; queries near it, on it and far away, over windows
+        // cutting runs anywhere.
+        let mut pts: Vec<Vec2> = (0..300).map(|i| Vec2::new(1500.0 + i as f32 * 0.9, -800.0 + 30.0 * (i as f32 * 0.05).sin())).collect();
+        pts.extend((0..40).map(|i| Vec2::new(1500.0 + 299.0 * 0.9 - i as f32, -800.0 + 30.0 * (299.0f32 * 0.05).sin())));
+        let pl = Polyline::new(pts).unwrap();
+        let n = pl.points().len() - 1;
+        let mut seed = 12345u32;
+        let mut rand = || {
+            seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            (seed >> 8) as f32 / (1u32 << 24) as f32
+        };
+        for _ in 0..4000 {
+            let v = pl.points()[(rand() * n as f32) as usize];
+            let p = v + Vec2::new(rand() - 0.5, rand() - 0.5) * [0.0, 2.0, 40.0, 600.0][(rand() * 4.0) as usize];
+            let first = (rand() * n as f32) as usize;
+            let last = first + (rand() * 120.0) as usize;
+            let (got, want) = (pl.project_range(p, first, last), scan_all(&pl, p, first, last));
+            assert_eq!(
+                (got.s.to_bits(), got.lateral.to_bits(), got.distance.to_bits(), got.segment),
+                (want.s.to_bits(), want.lateral.to_bits(), want.distance.to_bits(), want.segment),
+                "{p:?} over {first}..{last}"
+            );
+        }
+        let p = Vec2::new(1700.0, -780.0);
+        assert_eq!(pl.project(p), scan_all(&pl, p, 0, n));
     }
 
     #[test]

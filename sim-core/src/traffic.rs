@@ -158,6 +158,17 @@ pub struct Traffic {
     lane_cars: Vec<Vec<u32>>,
     touched: Vec<LaneId>,
     accel: Vec<f32>,
+    /// `manage_junctions`' scratch, kept to spare allocations.
+    junction_scratch: JunctionScratch,
+}
+
+/// Requests (first asked, car index, connector), held and denied connectors of one step's
+/// junction management.
+#[derive(Debug, Clone, Default)]
+struct JunctionScratch {
+    requests: Vec<(u64, usize, LaneId)>,
+    held: Vec<LaneId>,
+    denied: Vec<LaneId>,
 }
 
 impl Traffic {
@@ -172,6 +183,7 @@ impl Traffic {
             lane_cars: vec![Vec::new(); town.map.lanes.len()],
             touched: Vec::new(),
             accel: Vec::new(),
+            junction_scratch: JunctionScratch::default(),
         }
     }
 
@@ -308,7 +320,8 @@ impl Traffic {
             }
         }
         // Requests, oldest first; the ego's key sorts as car index usize::MAX on ties.
-        let mut requests: Vec<(u64, usize, LaneId)> = Vec::new();
+        let JunctionScratch { mut requests, mut held, mut denied } = std::mem::take(&mut self.junction_scratch);
+        requests.clear();
         for (i, c) in self.cars.iter_mut().enumerate() {
             if !c.active || c.parked || c.hold.is_some() {
                 continue;
@@ -327,16 +340,25 @@ impl Traffic {
         if let Some(r) = ego_request {
             requests.push((r.since, usize::MAX, r.connector));
         }
-        if requests.is_empty() {
-            return false;
-        }
-        requests.sort_unstable();
-        let mut held: Vec<LaneId> = self.cars.iter().filter_map(|c| c.hold).collect();
-        held.extend(ego_hold);
-        let mut denied: Vec<LaneId> = Vec::new();
         let mut ego_granted = false;
-        for (_, who, conn) in requests {
-            let blocked = held.iter().chain(&denied).any(|&h| town.connectors_conflict(conn, h));
+        if !requests.is_empty() {
+            requests.sort_unstable();
+            held.clear();
+            held.extend(self.cars.iter().filter_map(|c| c.hold));
+            held.extend(ego_hold);
+            denied.clear();
+            ego_granted = self.grant(town, &requests, &mut held, &mut denied);
+        }
+        self.junction_scratch = JunctionScratch { requests, held, denied };
+        ego_granted
+    }
+
+    /// Grants `requests` (sorted, oldest first) that conflict with no connector `held` or
+    /// `denied` before them and whose exit lane has room; returns whether the ego's was granted.
+    fn grant(&mut self, town: &Town, requests: &[(u64, usize, LaneId)], held: &mut Vec<LaneId>, denied: &mut Vec<LaneId>) -> bool {
+        let mut ego_granted = false;
+        for &(_, who, conn) in requests {
+            let blocked = held.iter().chain(denied.iter()).any(|&h| town.connectors_conflict(conn, h));
             let exit = town.map.lanes[conn].successors[0];
             let room = self.first_on(exit).is_none_or(|c| c.s > self.params.length + self.idm.min_gap + 2.0);
             if blocked || !room {

@@ -96,9 +96,17 @@ impl Box2 {
     #[must_use]
     pub fn ray(&self, o: Vec2, u: Vec2, max: f32) -> Option<f32> {
         let oc = self.centre - o;
+        self.ray_from(o, u, max, oc, oc.length_squared())
+    }
+
+    /// [`Box2::ray`] given the offset `oc` of the box's centre from `o` and its squared length
+    /// `oc2` (shared by every ray from `o`).
+    #[inline]
+    #[must_use]
+    pub fn ray_from(&self, o: Vec2, u: Vec2, max: f32, oc: Vec2, oc2: f32) -> Option<f32> {
         let tc = oc.dot(u);
         let r = self.radius;
-        if tc < -r || tc - r > max || oc.length_squared() - tc * tc > r * r {
+        if tc < -r || tc - r > max || oc2 - tc * tc > r * r {
             return None;
         }
         self.entry(o, u, max)

@@ -34,7 +34,7 @@ use crate::vehicle::{VehicleParams, VehicleState};
 
 use self::ego_path::{PathInput, write_ego, write_path};
 use self::objects::{CAMERA_AHEAD, OCCLUDER_MARGIN, Objects};
-use self::rays::{RayFan, edge_distance, obstacle_distance};
+use self::rays::{RayFan, Targets, edge_distance};
 use self::statics::StaticCache;
 
 /// The layout's name: actors send theirs at `Register`, checkpoints record it. Change it whenever
@@ -111,10 +111,12 @@ impl VectorConfig {
         s
     }
 
-    /// Values in one observation for `variant`.
+    /// Values in one observation for `variant`: the sum over [`VectorConfig::segments`], worked
+    /// out without building them (every reading asks).
     #[must_use]
     pub fn len(&self, variant: Variant) -> usize {
-        self.segments(variant).iter().map(|s| s.count * s.fields).sum()
+        let path = if variant == Variant::Hybrid { PATH_FIELDS + 2 * self.waypoints as usize } else { 0 };
+        EGO_FIELDS + path + OBJECT_FIELDS * self.objects as usize + RAY_FIELDS * self.rays as usize
     }
 
     /// The layout in words, as checkpoints record it: the version and each segment,
@@ -153,6 +155,7 @@ pub struct Sensor {
     statics: StaticCache,
     objects: Objects,
     fan: RayFan,
+    targets: Targets,
 }
 
 impl Sensor {
@@ -191,10 +194,10 @@ impl Sensor {
 
         let surface = &world.town.map.surface;
         let clearance = world.town.edge_clearance.get_or_init(|| rays::EdgeClearance::new(surface));
-        let boxes: [&[geometry::Box2]; 2] = [&self.objects.boxes, &self.statics.near];
+        self.targets.gather(ego.pos, range, &[&self.objects.boxes, &self.statics.near]);
         for (r, &u) in ray_out.chunks_exact_mut(RAY_FIELDS).zip(self.fan.directions(cfg.rays as usize)) {
             let u = Vec2::new(axis.x * u.x - axis.y * u.y, axis.y * u.x + axis.x * u.y);
-            r[0] = obstacle_distance(ego.pos, u, range, &boxes) / range;
+            r[0] = self.targets.distance(u, range) / range;
             r[1] = edge_distance(surface, clearance, ego.pos, u, range) / range;
         }
 
@@ -214,4 +217,22 @@ pub fn without_planner(cfg: &VectorConfig, reading: &[f32]) -> Vec<f32> {
     let planner = PATH_FIELDS + 2 * cfg.waypoints as usize;
     debug_assert_eq!(reading.len(), cfg.len(Variant::Hybrid), "a hybrid reading");
     reading[..EGO_FIELDS].iter().chain(&reading[EGO_FIELDS + planner..]).copied().collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_length_is_the_sum_of_the_segments() {
+        for cfg in [VectorConfig::default(), VectorConfig { objects: 0, waypoints: 32, rays: 7, range: 20.0 }] {
+            for variant in [Variant::Hybrid, Variant::EndToEnd] {
+                assert_eq!(
+                    cfg.len(variant),
+                    cfg.segments(variant).iter().map(|s| s.count * s.fields).sum::<usize>(),
+                    "{cfg:?} {variant:?}"
+                );
+            }
+        }
+    }
 }
