@@ -1,15 +1,15 @@
 #!/usr/bin/env bash
 # Demonstrations on the hazard suite (docs/RESULTS.md, "Learning from the planner that sees"):
 # the `hybrid-vector` preset with and without one `model-based-avoid` demonstrator (and with
-# pre-training on its demonstrations), each seed evaluated on the hazard suite of default_town
-# (10 runs per kind) at each budget, resumed from the last. Resumable: a finished evaluation is
-# kept and not rerun; an interrupted training continues from its checkpoint.
+# pre-training on its demonstrations, and with them but no margin loss), each seed evaluated on
+# the hazard suite of default_town (10 runs per kind) at each budget, resumed from the last.
+# Resumable: a finished evaluation is kept and not rerun; an interrupted training continues.
 # Usage: scripts/reproduce-demos.sh [--seeds "1 2 3"] [--budgets "100000 200000 400000"]
-#        [--arms "none demo pretrain"] [--runs-dir runs/demos] [--out experiments/demonstrations]
+#        [--arms "none demo pretrain nomargin"] [--runs-dir runs/demos] [--out experiments/demonstrations]
 set -euo pipefail
 cd "$(dirname "$0")/.."
 source scripts/lib.sh
-seeds="1 2 3" budgets="100000 200000 400000" arms="none demo pretrain"
+seeds="1 2 3" budgets="100000 200000 400000" arms="none demo pretrain nomargin"
 runs_dir=runs/demos out=experiments/demonstrations
 while [ $# -gt 0 ]; do
   case "$1" in
@@ -18,12 +18,12 @@ while [ $# -gt 0 ]; do
     --arms) arms=$2; shift 2 ;;
     --runs-dir) runs_dir=$2; shift 2 ;;
     --out) out=$2; shift 2 ;;
-    -h|--help) sed -n 2,9p "$0"; exit 0 ;;
+    -h|--help) sed -n 2,8p "$0"; exit 0 ;;
     *) echo "reproduce-demos.sh: unknown argument \`$1\` (see --help)" >&2; exit 2 ;;
   esac
 done
 for a in $arms; do
-  case "$a" in none|demo|pretrain) ;; *) echo "reproduce-demos.sh: --arms: unknown arm \`$a\`; expected some of: none demo pretrain" >&2; exit 2 ;; esac
+  case "$a" in none|demo|pretrain|nomargin) ;; *) echo "reproduce-demos.sh: --arms: unknown arm \`$a\`; expected some of: none demo pretrain nomargin" >&2; exit 2 ;; esac
 done
 require_positive reproduce-demos.sh $(for b in $budgets; do echo "budgets:$b"; done)
 resume_on_interrupt reproduce-demos.sh
@@ -36,6 +36,13 @@ preset = "hybrid-vector"
 [agent]
 demo_pretrain_updates = 2000
 TOML
+# The no-margin arm: demonstrations in the replay, trained on by the TD loss alone.
+cat > "$out/nomargin.toml" <<'TOML'
+preset = "hybrid-vector"
+
+[agent]
+demo_margin_weight = 0.0
+TOML
 for seed in $seeds; do
   for arm in $arms; do
     run="$runs_dir/$arm-seed$seed" keep="$out/$arm/seed$seed"
@@ -44,6 +51,7 @@ for seed in $seeds; do
       none) how=(--preset hybrid-vector) ;;
       demo) how=(--preset hybrid-vector --demo-actors 1) ;;
       pretrain) how=(--config "$out/pretrain.toml" --demo-actors 1) ;;
+      nomargin) how=(--config "$out/nomargin.toml" --demo-actors 1) ;;
     esac
     for budget in $budgets; do
       [ -f "$keep/hazards-$budget.json" ] && continue
