@@ -1,15 +1,16 @@
 #!/usr/bin/env bash
 # Demonstrations on the hazard suite (docs/RESULTS.md, "Learning from the planner that sees"):
 # the `hybrid-vector` preset with and without one `model-based-avoid` demonstrator (and with
-# pre-training on its demonstrations, and with them but no margin loss), each seed evaluated on
-# the hazard suite of default_town (10 runs per kind) at each budget, resumed from the last.
+# pre-training on its demonstrations, without the margin loss, and with a share of batches that
+# decays to none over 200k steps), each seed evaluated on the hazard suite of default_town (10
+# runs per kind) at each budget, resumed from the last.
 # Resumable: a finished evaluation is kept and not rerun; an interrupted training continues.
 # Usage: scripts/reproduce-demos.sh [--seeds "1 2 3"] [--budgets "100000 200000 400000"]
-#        [--arms "none demo pretrain nomargin"] [--runs-dir runs/demos] [--out experiments/demonstrations]
+#        [--arms "none demo pretrain nomargin decay"] [--runs-dir runs/demos] [--out experiments/demonstrations]
 set -euo pipefail
 cd "$(dirname "$0")/.."
 source scripts/lib.sh
-seeds="1 2 3" budgets="100000 200000 400000" arms="none demo pretrain nomargin"
+seeds="1 2 3" budgets="100000 200000 400000" arms="none demo pretrain nomargin decay"
 runs_dir=runs/demos out=experiments/demonstrations
 while [ $# -gt 0 ]; do
   case "$1" in
@@ -23,7 +24,7 @@ while [ $# -gt 0 ]; do
   esac
 done
 for a in $arms; do
-  case "$a" in none|demo|pretrain|nomargin) ;; *) echo "reproduce-demos.sh: --arms: unknown arm \`$a\`; expected some of: none demo pretrain nomargin" >&2; exit 2 ;; esac
+  case "$a" in none|demo|pretrain|nomargin|decay) ;; *) echo "reproduce-demos.sh: --arms: unknown arm \`$a\`; expected some of: none demo pretrain nomargin decay" >&2; exit 2 ;; esac
 done
 require_positive reproduce-demos.sh $(for b in $budgets; do echo "budgets:$b"; done)
 resume_on_interrupt reproduce-demos.sh
@@ -43,6 +44,14 @@ preset = "hybrid-vector"
 [agent]
 demo_margin_weight = 0.0
 TOML
+# The decaying arm: the demonstrations' share of batches from 0.25 to none over 200k env steps.
+cat > "$out/decay.toml" <<'TOML'
+preset = "hybrid-vector"
+
+[agent]
+demo_share_final = 0.0
+demo_share_decay_steps = 200000
+TOML
 for seed in $seeds; do
   for arm in $arms; do
     run="$runs_dir/$arm-seed$seed" keep="$out/$arm/seed$seed"
@@ -52,6 +61,7 @@ for seed in $seeds; do
       demo) how=(--preset hybrid-vector --demo-actors 1) ;;
       pretrain) how=(--config "$out/pretrain.toml" --demo-actors 1) ;;
       nomargin) how=(--config "$out/nomargin.toml" --demo-actors 1) ;;
+      decay) how=(--config "$out/decay.toml" --demo-actors 1) ;;
     esac
     for budget in $budgets; do
       [ -f "$keep/hazards-$budget.json" ] && continue
