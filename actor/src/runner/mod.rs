@@ -179,13 +179,8 @@ pub async fn run(args: &TrainArgs) -> Result<()> {
         // Seeds after the learning actors' (64·S + k for k < 64), so that no demonstrator drives
         // a learning actor's episodes.
         let seed = args.seed.map_or(1000 + k as u64, |s| s.wrapping_mul(64).wrapping_add(1000 + k as u64));
-        let child = Command::new(&exe)
-            .args(["--learner", &addr, "--envs", &args.envs.to_string(), "--name", &format!("demo-{k}"), "--seed", &seed.to_string()])
-            .args(["--demonstrate", demonstrator.name(), "--exit-with-stdin"])
-            .stdin(Stdio::piped())
-            .stdout(Stdio::null())
-            .stderr(log)
-            .spawn()
+        let extra = ["--demonstrate", demonstrator.name()];
+        let child = spawn_actor(&exe, &addr, args.envs, &format!("demo-{k}"), seed, &extra, log)
             .with_context(|| format!("starting demonstrator {k} ({})", exe.display()))?;
         children.push(child);
     }
@@ -200,15 +195,7 @@ pub async fn run(args: &TrainArgs) -> Result<()> {
     for k in 0..if interrupted { 0 } else { args.actors } {
         let log = open_actor_log(&args.run_dir.join(format!("actor-{k}.log")), &session.replace("{k}", &k.to_string()))?;
         let seed = args.seed.map_or(k as u64, |s| s.wrapping_mul(64).wrapping_add(k as u64));
-        // Its standard input is a pipe this process holds: when this process dies, even by
-        // SIGKILL, the pipe closes and the actor exits (`--exit-with-stdin`).
-        let child = Command::new(&exe)
-            .args(["--learner", &addr, "--envs", &args.envs.to_string(), "--name", &format!("local-{k}"), "--seed", &seed.to_string()])
-            .arg("--exit-with-stdin")
-            .stdin(Stdio::piped())
-            .stdout(Stdio::null())
-            .stderr(log)
-            .spawn()
+        let child = spawn_actor(&exe, &addr, args.envs, &format!("local-{k}"), seed, &[], log)
             .with_context(|| format!("starting actor {k} ({})", exe.display()))?;
         children.push(child);
     }
@@ -375,6 +362,28 @@ const DEFAULT_PRESET: &str = "hybrid-tuned";
 
 /// Opens an actor's log for appending (earlier sessions' logs are kept) and writes the session's
 /// header line.
+/// Starts `actor --learner ADDR` as a child named `name` (a learning actor, or a demonstrator with
+/// `extra`), its log on stderr. Its standard input is a pipe this process holds: when this process
+/// dies, even by SIGKILL, the pipe closes and the actor exits (`--exit-with-stdin`).
+fn spawn_actor(
+    exe: &std::path::Path,
+    addr: &str,
+    envs: usize,
+    name: &str,
+    seed: u64,
+    extra: &[&str],
+    log: std::fs::File,
+) -> std::io::Result<Child> {
+    Command::new(exe)
+        .args(["--learner", addr, "--envs", &envs.to_string(), "--name", name, "--seed", &seed.to_string()])
+        .args(extra)
+        .arg("--exit-with-stdin")
+        .stdin(Stdio::piped())
+        .stdout(Stdio::null())
+        .stderr(log)
+        .spawn()
+}
+
 fn open_actor_log(path: &std::path::Path, header: &str) -> Result<std::fs::File> {
     use std::io::Write;
     let mut file = std::fs::OpenOptions::new()

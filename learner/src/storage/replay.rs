@@ -860,9 +860,13 @@ mod tests {
             .collect()
     }
 
+    /// The steps as records borrowing their frames.
+    fn records<'a>(steps: &'a [(Vec<u8>, StepRecord<'static>)]) -> Vec<StepRecord<'a>> {
+        steps.iter().map(|(img, s)| StepRecord { image: img, ..s.clone() }).collect()
+    }
+
     fn add(r: &mut Replay, steps: &[(Vec<u8>, StepRecord<'static>)]) -> usize {
-        let recs: Vec<StepRecord<'_>> = steps.iter().map(|(img, s)| StepRecord { image: img, ..s.clone() }).collect();
-        r.add_steps("a", &recs)
+        r.add_steps("a", &records(steps))
     }
 
     #[test]
@@ -1269,8 +1273,7 @@ mod tests {
     }
 
     fn add_demo(r: &mut Replay, steps: &[(Vec<u8>, StepRecord<'static>)]) -> usize {
-        let recs: Vec<StepRecord<'_>> = steps.iter().map(|(img, s)| StepRecord { image: img, ..s.clone() }).collect();
-        r.add_demo_steps("teacher", &recs)
+        r.add_demo_steps("teacher", &records(steps))
     }
 
     /// The agent's experience overfills its partition (capacity 50) twenty times over and its
