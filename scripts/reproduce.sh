@@ -13,9 +13,10 @@
 # again, even from a fresh clone (its results are committed).
 #
 # `--experiment hazards` runs the hazard experiment instead (scripts/reproduce-hazards.sh, which
-# takes the flags that follow it).
+# takes the flags that follow it); `--experiment hazards2` the second one, with agents that see
+# objects (scripts/reproduce-hazards2.sh).
 #
-# Usage: scripts/reproduce.sh [--experiment main|hazards] [--seeds N] [--env-steps N] [--agents A,B] [--runs N] [--report-only]
+# Usage: scripts/reproduce.sh [--experiment main|hazards|hazards2] [--seeds N] [--env-steps N] [--agents A,B] [--runs N] [--report-only]
 #                             [--runs-dir DIR] [--out-dir DIR] [--data-dir DIR] [--smoke] [--no-build]
 set -euo pipefail
 # The whole script is one block, read before it runs: a file edited (or pulled) during an
@@ -26,7 +27,8 @@ if [[ "${1:-}" == --experiment ]]; then
     case "${2:-}" in
         main) shift 2 ;;
         hazards) shift 2; exec bash "$(dirname "$0")/reproduce-hazards.sh" "$@" ;;
-        *) echo "reproduce.sh: --experiment \`${2:-}\`: expected \`main\` (docs/RESULTS.md's table) or \`hazards\` (its hazard tables)" >&2; exit 2 ;;
+        hazards2) shift 2; exec bash "$(dirname "$0")/reproduce-hazards2.sh" "$@" ;;
+        *) echo "reproduce.sh: --experiment \`${2:-}\`: expected \`main\` (docs/RESULTS.md's table), \`hazards\` or \`hazards2\` (its hazard tables)" >&2; exit 2 ;;
     esac
 fi
 
@@ -54,8 +56,9 @@ usage() {
     cat <<'EOF'
 scripts/reproduce.sh — the experiment of docs/RESULTS.md: agents × seeds, two towns, intervals.
 
-  --experiment E  `main` (this text's experiment, the default) or `hazards` (the hazard
+  --experiment E  `main` (this text's experiment, the default), `hazards` (the hazard
                   experiment: scripts/reproduce-hazards.sh, with the flags after it; its --help)
+                  or `hazards2` (agents that see objects: scripts/reproduce-hazards2.sh)
                   given first
   --seeds N       seeds per agent, 1..N (default 3)
   --env-steps N   training budget per run, environment steps (default 400000); wall time is

@@ -302,6 +302,10 @@ fn actor_train_keeps_the_best_weights_of_its_periodic_evaluations_across_a_resum
     for e in &all {
         let (clean, hazards) = (e["driving_score"].as_f64().unwrap(), e["hazard_driving_score"].as_f64().unwrap());
         assert!((score(e) - 0.5 * (clean + hazards)).abs() < 1e-12, "{e}");
+        // One score per hazard kind, whose mean (the same runs per kind) is the suite's.
+        let kinds: Vec<f64> = e["hazard_kinds"].as_array().unwrap().iter().map(|k| k["driving_score"].as_f64().unwrap()).collect();
+        assert_eq!(kinds.len(), 7, "{e}");
+        assert!((kinds.iter().sum::<f64>() / 7.0 - hazards).abs() < 1e-9, "{e}");
         // Marked best exactly when it beats every earlier one, the first session's included.
         assert_eq!(e["best"].as_bool().unwrap_or(false), score(e) > best, "{e}");
         best = best.max(score(e));

@@ -73,8 +73,9 @@ pub struct EvalArgs {
     #[arg(long, value_name = "FILE")]
     pub json_out: Option<PathBuf>,
     /// Score the field's way (driving score = route completion × infraction penalty) on a suite:
-    /// `hazards` (one scenario per hazard kind, on random routes of the town) or `clean` (the
-    /// seven routes), beside the `model-based` and `model-based-avoid` baselines. `--route` does
+    /// `hazards` (one scenario per hazard kind, on random routes of the town), `hazards-robust`
+    /// (the same with every hazard parameter drawn beyond the ranges training draws from:
+    /// docs/EVALUATION.md) or `clean` (the seven routes), beside the `model-based` and `model-based-avoid` baselines. `--route` does
     /// not apply.
     #[arg(long, value_name = "SUITE")]
     pub suite: Option<String>,

@@ -32,6 +32,8 @@ use crate::eval::trajectory::{Trajectory, TrajectoryRecorder};
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Suite {
     Hazards,
+    /// The hazard suite with every parameter drawn beyond training's ranges.
+    HazardsRobust,
     Clean,
 }
 
@@ -40,8 +42,9 @@ impl Suite {
     pub fn from_name(name: &str) -> Result<Self> {
         match name {
             "hazards" => Ok(Self::Hazards),
+            "hazards-robust" => Ok(Self::HazardsRobust),
             "clean" => Ok(Self::Clean),
-            other => bail!("--suite `{other}`: expected `hazards` or `clean`"),
+            other => bail!("--suite `{other}`: expected `hazards`, `hazards-robust` or `clean`"),
         }
     }
 
@@ -49,6 +52,7 @@ impl Suite {
     pub fn name(self) -> &'static str {
         match self {
             Self::Hazards => "hazards",
+            Self::HazardsRobust => "hazards-robust",
             Self::Clean => "clean",
         }
     }
@@ -79,14 +83,18 @@ struct ScenarioSpec {
     hazard: Option<HazardKind>,
 }
 
-fn scenarios(suite: Suite) -> Vec<ScenarioSpec> {
+/// The suite's scenarios on `town`: every hazard kind; the clean suite's route types the town
+/// has (a map file may lack some: `sim_core::route_types`).
+fn scenarios(suite: Suite, town: &sim_core::town::Town) -> Vec<ScenarioSpec> {
     match suite {
-        Suite::Hazards => {
+        Suite::Hazards | Suite::HazardsRobust => {
             SUITE_KINDS.iter().map(|&k| ScenarioSpec { name: k.name(), scenario: Scenario::Random, hazard: Some(k) }).collect()
         }
-        Suite::Clean => {
-            EvalRoute::ALL.iter().map(|&r| ScenarioSpec { name: r.name(), scenario: Scenario::Eval(r), hazard: None }).collect()
-        }
+        Suite::Clean => EvalRoute::ALL
+            .iter()
+            .filter(|r| r.endpoints_in(town).is_some())
+            .map(|&r| ScenarioSpec { name: r.name(), scenario: Scenario::Eval(r), hazard: None })
+            .collect(),
     }
 }
 
@@ -157,7 +165,14 @@ pub fn evaluate_suite(agents: &mut [Agent], opts: &SuiteOptions) -> Result<Suite
     if opts.runs == 0 {
         bail!("--runs must be at least 1");
     }
-    let specs = scenarios(opts.suite);
+    let specs = scenarios(opts.suite, &opts.town);
+    if specs.is_empty() {
+        bail!("{} has none of the clean suite's route types ({})", opts.town.map.name, EvalRoute::ALL.map(EvalRoute::name).join(", "));
+    }
+    if opts.progress && specs.len() < scenarios(opts.suite, &sim_core::town::Town::default_town()).len() {
+        let missing: Vec<&str> = EvalRoute::ALL.iter().map(|r| r.name()).filter(|n| !specs.iter().any(|s| s.name == *n)).collect();
+        eprintln!("{} has no route of type {}: left out of the suite", opts.town.map.name, missing.join(", "));
+    }
     let started = Instant::now();
     let total = agents.len() * specs.len();
     let mut done = 0usize;
@@ -172,6 +187,9 @@ pub fn evaluate_suite(agents: &mut [Agent], opts: &SuiteOptions) -> Result<Suite
             if let Some(kind) = spec.hazard {
                 cfg.hazards = HazardsConfig::only(kind);
                 episodes::use_suite_episodes(&mut cfg);
+                if opts.suite == Suite::HazardsRobust {
+                    cfg.hazards = HazardsConfig::beyond_training(kind);
+                }
             }
             let mut envs: Vec<Env> = (0..opts.runs)
                 .map(|_| Env::new(opts.town.clone(), cfg.clone()))
@@ -490,21 +508,33 @@ mod tests {
             assert!(a.driving_score >= 0.95, "{}: {}", a.name, a.driving_score);
             assert!(a.scenarios.iter().all(|s| s.runs[0].hazard.is_none()));
         }
-        assert!(Suite::from_name("meteor").unwrap_err().to_string().contains("`hazards` or `clean`"));
+        assert!(Suite::from_name("meteor").unwrap_err().to_string().contains("`hazards`, `hazards-robust` or `clean`"));
+    }
+
+    #[test]
+    fn the_clean_suite_on_a_map_file_drives_the_route_types_it_has() {
+        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../sim-core/tests/data/opendrive/Town01.xodr");
+        let town = crate::eval::routes::town_by_name_or_file(path).unwrap();
+        let mut agents = vec![model_based()];
+        let report = evaluate_suite(&mut agents, &SuiteOptions { town, ..opts(Suite::Clean, 1) }).unwrap();
+        let names: Vec<&str> = report.agents[0].scenarios.iter().map(|s| s.scenario).collect();
+        assert_eq!(names, ["straight_urban", "sharp_curve", "right_turn", "left_turn"], "docs/MAP-FORMAT.md's list");
+        assert!(report.agents[0].driving_score > 0.9, "{}", report.agents[0].driving_score);
     }
 
     #[test]
     fn a_checkpoint_of_today_evaluates_on_both_suites_with_its_planner() {
         let dir = tempfile::tempdir().unwrap();
         write_checkpoint(dir.path(), &tiny_config(Variant::Hybrid));
-        for suite in [Suite::Hazards, Suite::Clean] {
+        for suite in [Suite::Hazards, Suite::HazardsRobust, Suite::Clean] {
             let agent = load_checkpoint(dir.path()).unwrap();
             let mut agents = vec![Agent { name: "fresh".into(), driver: Driver::Greedy(Box::new(agent)) }];
             let report = evaluate_suite(&mut agents, &opts(suite, 1)).unwrap();
             let a = &report.agents[0];
             assert_eq!(a.planner, "astar", "checkpoints so far plan with A*");
             assert!(a.driving_score.is_finite() && (0.0..=1.0).contains(&a.driving_score), "{}", a.driving_score);
-            assert_eq!(a.scenarios.len(), if suite == Suite::Hazards { SUITE_KINDS.len() } else { EvalRoute::ALL.len() });
+            assert_eq!(a.scenarios.len(), if suite == Suite::Clean { EvalRoute::ALL.len() } else { SUITE_KINDS.len() });
+            assert_eq!(report.suite, suite.name());
         }
     }
 }

@@ -16,7 +16,7 @@ use anyhow::{Context, Result};
 use clap::Args;
 use learner::serve::{ServeOptions, start};
 
-use learner::telemetry::records::{EvalRecord, EvalRouteRecord};
+use learner::telemetry::records::{EvalKindRecord, EvalRecord, EvalRouteRecord};
 
 use crate::runner::best::Counters;
 use crate::runner::periodic_eval::{PeriodicScore, SEED, score_weights};
@@ -472,6 +472,9 @@ fn eval_record(score: &PeriodicScore, runs: u32) -> EvalRecord {
             .collect(),
         driving_score: Some(score.clean.driving_score),
         hazard_driving_score: score.hazards.as_ref().map(|h| h.driving_score),
+        hazard_kinds: score.hazards.as_ref().map_or_else(Vec::new, |h| {
+            h.scenarios.iter().map(|s| EvalKindRecord { kind: s.scenario.into(), driving_score: s.driving_score }).collect()
+        }),
         selection_score: Some(score.selection_score()),
         best: false,
     }

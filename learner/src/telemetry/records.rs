@@ -43,12 +43,23 @@ pub struct EvalRecord {
     /// a run that trains with hazards.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub hazard_driving_score: Option<f64>,
+    /// The hazard suite's driving score per hazard kind, in the suite's order (the learning
+    /// curves per kind of docs/RESULTS.md).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub hazard_kinds: Vec<EvalKindRecord>,
     /// What `best/` is chosen by: the mean of the driving scores measured.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub selection_score: Option<f64>,
     /// Whether these weights became the run's `best/` checkpoint.
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub best: bool,
+}
+
+/// One hazard kind of an [`EvalRecord`].
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct EvalKindRecord {
+    pub kind: String,
+    pub driving_score: f64,
 }
 
 /// One route of an [`EvalRecord`].

@@ -100,6 +100,23 @@ impl HazardsConfig {
     pub fn only(kind: HazardKind) -> Self {
         Self { rate: 1.0, kinds: vec![kind], ..Self::default() }
     }
+
+    /// Only `kind`, in every episode, with every parameter drawn beyond the range training draws
+    /// it from, on the side that leaves the ego less room (`actor eval --suite hazards-robust`):
+    /// a walker that steps out later and walks faster, a shorter cut-in gap, a longer closure and
+    /// stop, a faster junction runner. The distance to the hazard is the suite's.
+    #[must_use]
+    pub fn beyond_training(kind: HazardKind) -> Self {
+        Self {
+            trigger_time: Range::new(1.0, 1.5),
+            walker_speed: Range::new(1.8, 2.4),
+            closure_length: Range::new(20.0, 30.0),
+            stop_time: Range::new(4.0, 8.0),
+            cut_in_gap: Range::new(3.0, 6.0),
+            runner_speed: Range::new(11.0, 14.0),
+            ..Self::only(kind)
+        }
+    }
 }
 
 #[cfg(test)]
@@ -117,5 +134,24 @@ mod tests {
         assert!(bad.validate().unwrap_err().to_string().contains("stalled_car"));
         let bad = HazardsConfig { distance: Range::new(80.0, 40.0), ..HazardsConfig::default() };
         assert_eq!(bad.validate().unwrap_err().field, "hazards.distance");
+    }
+
+    #[test]
+    fn beyond_training_draws_every_parameter_outside_the_training_range_on_the_harder_side() {
+        let (t, b) = (HazardsConfig::default(), HazardsConfig::beyond_training(HazardKind::ALL[0]));
+        b.validate().unwrap();
+        // Less time, a shorter gap: below the training range; the rest above it.
+        for (name, train, hard, below) in [
+            ("trigger_time", t.trigger_time, b.trigger_time, true),
+            ("cut_in_gap", t.cut_in_gap, b.cut_in_gap, true),
+            ("walker_speed", t.walker_speed, b.walker_speed, false),
+            ("closure_length", t.closure_length, b.closure_length, false),
+            ("stop_time", t.stop_time, b.stop_time, false),
+            ("runner_speed", t.runner_speed, b.runner_speed, false),
+        ] {
+            let outside = if below { hard.max <= train.min } else { hard.min >= train.max };
+            assert!(outside && hard.min < hard.max, "{name}: {hard:?} is not beyond {train:?}");
+        }
+        assert_eq!((b.rate, b.kinds.as_slice(), b.distance), (1.0, &HazardKind::ALL[..1], t.distance));
     }
 }

@@ -138,6 +138,19 @@ fn an_episode_drawn_without_a_hazard_is_the_episode_with_hazards_off() {
 }
 
 #[test]
+fn draws_beyond_training_reach_the_episode() {
+    let kind = HazardKind::PedestrianCrossing;
+    let cfg = EnvConfig { hazards: HazardsConfig::beyond_training(kind), ..config(kind) };
+    let mut env = Env::new(Town::default_town(), cfg).unwrap();
+    for seed in 0..5 {
+        env.reset(seed, Scenario::Random).unwrap();
+        let h = env.hazard.clone().unwrap_or_else(|| panic!("seed {seed}: no hazard"));
+        assert!(!h.walkers.is_empty());
+        assert!(h.walkers.iter().all(|w| (1.8..=2.4).contains(&w.speed)), "seed {seed}: {:?}", h.walkers);
+    }
+}
+
+#[test]
 fn stalled_car_stops_the_blind_driver_and_the_avoiding_one_passes_it() {
     let blind = outcomes(&config(HazardKind::StalledCar), &Expert::default(), 5);
     assert!(blind.iter().all(|&(c, arrived)| c.is_none() && !arrived), "the blind driver waits behind it: {blind:?}");

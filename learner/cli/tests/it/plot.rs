@@ -276,6 +276,7 @@ fn periodic_evaluations_get_a_panel_and_give_the_time_to_competence() {
         routes: vec![EvalRouteRecord { route: "straight_urban".into(), completed: 2, mean_return: 50.0 }],
         driving_score: None,
         hazard_driving_score: None,
+        hazard_kinds: Vec::new(),
         selection_score: None,
         best: false,
     };
