@@ -5,6 +5,7 @@
 //! Margins are generous: the bounds are there to refuse the impossible, not the unusual.
 
 use sim_core::config::{EnvConfig, Variant};
+use sim_core::reward::RewardKind;
 
 /// Margins: a bound is `FACTOR × the physical limit + SLACK` (in the value's unit).
 const FACTOR: f32 = 2.0;
@@ -38,23 +39,37 @@ impl Bounds {
         let reach = env.route_length_max.abs() + steps * env.dt.abs() * vmax;
         let distance = FACTOR * reach + SLACK;
         let r = &env.reward;
-        // The terms of the shaped reward, each an interval (sim_core::reward).
-        let r_v = (-1.0, vmax / r.v0() - 1.0);
-        // Progress 1 − l/l_prev: at most 1; at least −(one step's travel)/(the arrival radius,
-        // below which the episode ends).
-        let r_l = (-(vmax * env.dt.abs()) / r.arrival_radius, 1.0);
-        let r_w = match env.variant {
-            Variant::Hybrid => (1.0 - distance / r.d0, 1.0),
-            Variant::EndToEnd => (0.0, 0.0),
-        };
         let scaled = |beta: f32, (lo, hi): (f32, f32)| if beta >= 0.0 { (beta * lo, beta * hi) } else { (beta * hi, beta * lo) };
-        let terms = [scaled(r.beta_v, r_v), scaled(r.beta_l, r_l), scaled(r.beta_w, r_w)];
-        let mut shaped = terms.iter().fold((0.0, 0.0), |acc, t| (acc.0 + t.0, acc.1 + t.1));
-        if let Some(c) = r.clip {
-            shaped = (shaped.0.max(-c), shaped.1.min(c));
-        }
-        let lo = shaped.0.min(r.collision).min(r.arrival);
-        let hi = shaped.1.max(r.collision).max(r.arrival);
+        let clip = |(lo, hi): (f32, f32)| r.clip.map_or((lo, hi), |c| (lo.max(-c), hi.min(c)));
+        // The driving step's shaped reward, the collision's and the arrival's, each an interval
+        // (sim_core::reward).
+        let (shaped, collision, arrival) = match r.kind {
+            RewardKind::Paper => {
+                let r_v = (-1.0, vmax / r.v0() - 1.0);
+                // Progress 1 − l/l_prev: at most 1; at least −(one step's travel)/(the arrival
+                // radius, below which the episode ends).
+                let r_l = (-(vmax * env.dt.abs()) / r.arrival_radius, 1.0);
+                let r_w = match env.variant {
+                    Variant::Hybrid => (1.0 - distance / r.d0, 1.0),
+                    Variant::EndToEnd => (0.0, 0.0),
+                };
+                let terms = [scaled(r.beta_v, r_v), scaled(r.beta_l, r_l), scaled(r.beta_w, r_w)];
+                (clip(terms.iter().fold((0.0, 0.0), |acc, t| (acc.0 + t.0, acc.1 + t.1))), (r.collision, r.collision), r.arrival)
+            }
+            RewardKind::Progress => {
+                // Progress min(ds, v0·dt)/(v0·dt): at most 1, at least a step backwards at top speed.
+                let r_p = (-vmax / r.v0(), 1.0);
+                let r_lane = match env.variant {
+                    Variant::Hybrid => (-r.lane_weight * (distance - r.lane_dead_zone).max(0.0) / r.lane_dead_zone, 0.0),
+                    Variant::EndToEnd => (0.0, 0.0),
+                };
+                // A collision costs more the faster it is: at most top speed.
+                let collision = (r.progress_collision - r.collision_per_speed * vmax, r.progress_collision);
+                (clip((r_p.0 + r_lane.0, r_p.1 + r_lane.1)), collision, r.progress_arrival)
+            }
+        };
+        let lo = shaped.0.min(collision.0).min(arrival);
+        let hi = shaped.1.max(collision.1).max(arrival);
         let widen = |x: f32| x.abs() * (FACTOR - 1.0) + SLACK;
         let reward = (lo - widen(lo), hi + widen(hi));
         Self {
@@ -87,5 +102,23 @@ mod tests {
         clipped.reward.arrival = 1.0;
         let b = Bounds::of(&clipped);
         assert_eq!(b.reward, (-3.0, 3.0));
+    }
+
+    /// Every preset's extreme rewards are within its bounds: a collision at top speed under the
+    /// progress reward (end-to-end: no lane term to widen the bound) was once refused.
+    #[test]
+    fn every_presets_extreme_rewards_are_within_its_bounds() {
+        use sim_core::reward::{Outcome, StepMeasures};
+        for name in agent::presets::PRESETS.iter().map(|p| p.0) {
+            let cfg = agent::config::RunConfig::preset(name).unwrap().env;
+            let b = Bounds::of(&cfg);
+            let vmax = cfg.vehicle.max_speed;
+            let fast = StepMeasures { speed: vmax, ..StepMeasures::default() };
+            let backwards = StepMeasures { speed: vmax, ds: -vmax * cfg.dt, dt: cfg.dt, ..StepMeasures::default() };
+            for (outcome, m) in [(Outcome::Collision, &fast), (Outcome::Arrived, &fast), (Outcome::Driving, &backwards)] {
+                let reward = cfg.reward.reward(cfg.variant, outcome, m).total;
+                assert!((b.reward.0..=b.reward.1).contains(&reward), "{name}: {outcome:?} gives {reward}, beyond {:?}", b.reward);
+            }
+        }
     }
 }
