@@ -8,6 +8,7 @@ experiments/results.json, figures).
              evaluation, once into experiments/hazards2/baselines/)
   report     the hazards2 sections of docs/RESULTS.md, experiments/results.json's "hazards2",
              docs/figures/hazards2-*.svg
+  readme     README's expectation table for its first command, from h2-hybrid-vector's runs
 
 Standard library only, so that it runs wherever the project's scripts run.
 """
@@ -137,7 +138,7 @@ def placed(reports):
 
 
 def agents():
-    return main_results.agents_of("hazards2")
+    return main_results.agents_of("hazards2") + main_results.agents_of("hazards2-long")
 
 
 def rows(runs, baselines):
@@ -223,7 +224,7 @@ def report(a):
         for name in agents():
             pairs += [(f"{name} ({ck})", "model-based"), (f"{name} ({ck})", "model-based-avoid")]
         pairs += [(f"h2-hybrid-vector ({ck})", f"h2-e2e-vector ({ck})"), (f"h2-hybrid-vector-avoid ({ck})", f"h2-hybrid-vector ({ck})"),
-                  (f"h2-hybrid-vector ({ck})", f"h2-hybrid-hazards ({ck})")]
+                  (f"h2-hybrid-vector ({ck})", f"h2-hybrid-hazards ({ck})"), (f"h2-hybrid-vector-long ({ck})", f"h2-hybrid-vector ({ck})")]
     for x, y in pairs:
         for suite, town in EVALS:
             if (x, suite, town) in draws and (y, suite, town) in draws:
@@ -285,6 +286,8 @@ def tables(data):
     lines = ["| difference (driving score) | suite | town | estimate [95 % CI] |", "|---|---|---|---:|"]
     for k, d in data["differences"].items():
         pair, suite, town = k.split(" | ")
+        if suite not in ("hazards", "clean") or town == "town01":
+            continue
         m = d["driving_score"]
         lines.append(f"| {pair} | {suite} | {TOWN_NAMES[town]} | {m['estimate']:+.2f} [{m['ci95'][0]:+.2f}, {m['ci95'][1]:+.2f}] |")
     s["hazards2-differences"] = "\n".join(lines)
@@ -370,6 +373,41 @@ def curves_figure(curves):
     return "\n".join(out) + "\n"
 
 
+def readme(a):
+    """README's expectation table for its first command (`actor train --preset hybrid-vector
+    --max-env-steps 1000000 --eval-every 0.5`): the runs of `--agent` (h2-hybrid-vector, the
+    same preset, budget and evaluation interval) and any `--extra RUN_DIR` run the same way
+    (README's own check), as ranges over runs, printed as JSON."""
+    rows = []
+    for run_json in sorted(Path(a.results).glob(f"{a.agent}/seed*/run.json")):
+        d = run_json.parent
+        r = json.loads(run_json.read_text())
+        rows.append({"run": str(d), "periodic": main_results.read_jsonl(d / "eval.jsonl"), "session_secs": r.get("session_secs"), "cpu": r.get("cpu"),
+                     "evals": {k: read_eval(eval_path(d, *k)) for k in [("clean", "default_town"), ("hazards", "default_town")] if eval_path(d, *k).exists()}})
+    for extra in a.extra or []:
+        d = Path(extra)
+        evals = {}
+        for suite in ["clean", "hazards"]:
+            p = d / f"eval-{suite}-default_town.json"
+            if p.exists():
+                evals[(suite, "default_town")] = json.loads(p.read_text())
+        rows.append({"run": str(d), "periodic": main_results.read_jsonl(d / "eval.jsonl"), "session_secs": None, "cpu": None, "evals": evals})
+    out = {"runs": len(rows), "per_run": []}
+    for r in rows:
+        first = lambda n: next((e["env_steps"] for e in r["periodic"] if e["route_types_mastered"] >= n), None)  # noqa: E731
+        last = {}
+        for (suite, _), ev in r["evals"].items():
+            ag = next(x for x in ev["agents"] if x["name"] == "last")
+            last[suite] = round(ag["driving_score"], 3)
+            if suite == "clean":
+                last["clean_route_types_majority"] = sum(1 for sc in ag["scenarios"] if 2 * sum(1 for x in sc["runs"] if x["route_completion"] >= 1.0) > len(sc["runs"]))
+        out["per_run"].append({"run": r["run"], "first_5_of_7": first(5), "first_7_of_7": first(7), "session_secs": r["session_secs"], "cpu": r["cpu"], **last})
+    for key in ["first_5_of_7", "first_7_of_7", "clean", "hazards", "clean_route_types_majority", "session_secs"]:
+        vals = [x[key] for x in out["per_run"] if x.get(key) is not None]
+        out[key] = {"min": min(vals), "max": max(vals), "n": len(vals), "missing": len(out["per_run"]) - len(vals)} if vals else None
+    print(json.dumps(out, indent=1))
+
+
 def main():
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = p.add_subparsers(dest="command", required=True)
@@ -382,11 +420,12 @@ def main():
     r.add_argument("--results", default="experiments/hazards2")
     r.add_argument("--out-dir", default="docs")
     r.add_argument("--json-out", default="experiments/results.json")
+    m = sub.add_parser("readme")
+    m.add_argument("--results", default="experiments/hazards2")
+    m.add_argument("--agent", default="h2-hybrid-vector")
+    m.add_argument("--extra", action="append", help="a directory with a run's eval.jsonl and its eval-SUITE-default_town.json (README's own check)")
     a = p.parse_args()
-    if a.command == "keep-run":
-        keep_run(a)
-    else:
-        report(a)
+    {"keep-run": keep_run, "report": report, "readme": readme}[a.command](a)
 
 
 if __name__ == "__main__":

@@ -7,6 +7,9 @@
 #      to its budget: --env-steps for the vector agents, --camera-env-steps for the camera agent
 #      (`h2-hybrid-hazards`), periodic evaluations every --eval-every minutes (the learning curves
 #      per hazard kind and the choice of best/)
+#   1b. the longer-budget row (group `hazards2-long`): each of seeds 1..--long-seeds of
+#      h2-hybrid-vector trained on from its --env-steps checkpoint to --long-env-steps (a copy of
+#      its run directory, resumed: the curve is that run's own)
 #   2. the last checkpoint and best/ of every run on the hazard suite and the clean suite on
 #      default_town, held_out_town and CARLA's Town01 (sim-core/tests/data/opendrive/Town01.xodr),
 #      and on the robustness suite (`hazards-robust`: every hazard parameter drawn beyond the
@@ -26,10 +29,13 @@ set -euo pipefail
 # shellcheck source=scripts/lib.sh
 source "$(dirname "$0")/lib.sh"
 agents_of hazards2 agents
+agents_of hazards2-long long
 
 seeds=5
 env_steps=1000000
 camera_env_steps=400000
+long_env_steps=3000000
+long_seeds=3
 only=""
 runs=10
 eval_every=0.5
@@ -44,6 +50,8 @@ scripts/reproduce-hazards2.sh — the second hazard experiment of docs/RESULTS.m
   --seeds N             seeds per agent, 1..N (default 5)
   --env-steps N         the vector agents' budget, environment steps (default 1000000)
   --camera-env-steps N  the camera agent's budget (default 400000)
+  --long-env-steps N    the longer-budget row's budget (default 3000000); 0 skips the row
+  --long-seeds N        seeds of the longer-budget row, 1..N (default 3)
   --agents A,B          train only these (names below); the report covers every finished run
   --runs N              evaluation runs per hazard kind or route, suite and town (default 10)
   --eval-every M        minutes between periodic evaluations during training (default 0.5)
@@ -55,7 +63,7 @@ scripts/reproduce-hazards2.sh — the second hazard experiment of docs/RESULTS.m
 Agents (--seeds seeds each):
 EOF
     local v name what
-    for v in "${agents[@]}"; do
+    for v in "${agents[@]}" "${long[@]}"; do
         IFS='|' read -r name _ _ what <<<"$v"
         printf '  %-24s %s\n' "$name" "$what"
     done
@@ -68,6 +76,8 @@ while [[ $# -gt 0 ]]; do
         --seeds) seeds="${2:?--seeds needs a number}"; shift 2 ;;
         --env-steps) env_steps="${2:?--env-steps needs a number}"; shift 2 ;;
         --camera-env-steps) camera_env_steps="${2:?--camera-env-steps needs a number}"; shift 2 ;;
+        --long-env-steps) long_env_steps="${2:?--long-env-steps needs a number}"; shift 2 ;;
+        --long-seeds) long_seeds="${2:?--long-seeds needs a number}"; shift 2 ;;
         --agents) only="${2:?--agents needs names}"; shift 2 ;;
         --runs) runs="${2:?--runs needs a number}"; shift 2 ;;
         --eval-every) eval_every="${2:?--eval-every needs minutes}"; shift 2 ;;
@@ -79,13 +89,17 @@ while [[ $# -gt 0 ]]; do
     esac
 done
 require_positive reproduce-hazards2.sh "seeds:$seeds" "env-steps:$env_steps" "camera-env-steps:$camera_env_steps" "runs:$runs" "eval-every:$eval_every"
-for pair in "seeds:$seeds" "env-steps:$env_steps" "camera-env-steps:$camera_env_steps" "runs:$runs"; do
+for pair in "seeds:$seeds" "env-steps:$env_steps" "camera-env-steps:$camera_env_steps" "long-env-steps:$long_env_steps" "long-seeds:$long_seeds" "runs:$runs"; do
     if ! [[ "${pair#*:}" =~ ^[0-9]+$ ]]; then
         echo "reproduce-hazards2.sh: --${pair%%:*} ${pair#*:} must be a whole number" >&2
         exit 2
     fi
 done
-require_known reproduce-hazards2.sh "$only" "" "${agents[@]}"
+if [[ "$long_env_steps" != 0 && "$long_env_steps" -le "$env_steps" ]]; then
+    echo "reproduce-hazards2.sh: --long-env-steps $long_env_steps must exceed --env-steps $env_steps (or be 0)" >&2
+    exit 2
+fi
+require_known reproduce-hazards2.sh "$only" "" "${agents[@]}" "${long[@]}"
 
 cd "$(dirname "$0")/.."
 resume_on_interrupt reproduce-hazards2.sh
@@ -116,16 +130,19 @@ evaluate() {
     done
 }
 
-# budget_of PRESET: the agent's env-step budget: the camera's for a camera preset.
+# budget_of NAME PRESET: the agent's env-step budget: the longer row's, the vector agents', or
+# the camera's.
 budget_of() {
-    if [[ "$1" == hybrid-vector || "$1" == e2e-vector ]]; then echo "$env_steps"; else echo "$camera_env_steps"; fi
+    if [[ "$1" == "${long[0]%%|*}" ]]; then echo "$long_env_steps"
+    elif [[ "$2" == hybrid-vector || "$2" == e2e-vector ]]; then echo "$env_steps"
+    else echo "$camera_env_steps"; fi
 }
 
 # train_and_evaluate NAME PRESET EXTRA SEED: one run, skipped when its run.json exists.
 train_and_evaluate() {
     local name="$1" preset="$2" extra="$3" seed="$4"
     local dir="$runs_dir/$name/seed$seed" out="$results/$name/seed$seed" budget
-    budget=$(budget_of "$preset")
+    budget=$(budget_of "$name" "$preset")
     run_done "$name" "$seed" "$out" && return
     mkdir -p "$dir" "$out"
     local cfg="$out/config.toml"
@@ -148,12 +165,32 @@ if [[ "$report_only" == 0 ]]; then
             if wanted "$name"; then train_and_evaluate "$name" "$preset" "$extra" "$seed"; fi
         done
     done
+    # 1b. The longer-budget row: each seed's first agent run trained on from a copy of its run
+    # directory.
+    IFS='|' read -r long_name long_preset long_extra _ <<<"${long[0]}"
+    IFS='|' read -r first _ _ _ <<<"${agents[0]}"
+    if [[ "$long_env_steps" != 0 ]] && wanted "$long_name"; then
+        for seed in $(seq 1 "$long_seeds"); do
+            from="$runs_dir/$first/seed$seed" dir="$runs_dir/$long_name/seed$seed"
+            run_done "$long_name" "$seed" "$results/$long_name/seed$seed" && continue
+            if [[ ! -f "$results/$first/seed$seed/run.json" || ! -d "$from/checkpoint" ]]; then
+                echo "== $long_name seed $seed: waits for $first seed $seed (its run directory $from)" >&2
+                continue
+            fi
+            if [[ ! -d "$dir" ]]; then
+                echo "== $long_name seed $seed: starting from a copy of $from" >&2
+                mkdir -p "$runs_dir/$long_name"
+                cp -r "$from" "$dir.tmp" && mv "$dir.tmp" "$dir"
+            fi
+            train_and_evaluate "$long_name" "$long_preset" "$long_extra" "$seed"
+        done
+    fi
     # The episode figure's runs: every agent's lowest finished seed whose run directory is here,
     # last checkpoint, around the same stalled cars (default_town). Kept as it is unless every
     # agent that has finished runs has its run directory here.
     fig_args=()
     missing=()
-    for v in "${agents[@]}"; do
+    for v in "${agents[@]}" "${long[@]}"; do
         name="${v%%|*}"
         [[ -n "$(ls -d "$results/$name"/seed*/run.json 2>/dev/null)" ]] || continue
         found=0
