@@ -388,21 +388,26 @@ def readme(a):
         d = Path(extra)
         evals = {}
         for suite in ["clean", "hazards"]:
-            p = d / f"eval-{suite}-default_town.json"
+            p = eval_path(d, suite, "default_town")
             if p.exists():
-                evals[(suite, "default_town")] = json.loads(p.read_text())
+                evals[(suite, "default_town")] = read_eval(p)
         rows.append({"run": str(d), "periodic": main_results.read_jsonl(d / "eval.jsonl"), "session_secs": None, "cpu": None, "evals": evals})
     out = {"runs": len(rows), "per_run": []}
     for r in rows:
         first = lambda n: next((e["env_steps"] for e in r["periodic"] if e["route_types_mastered"] >= n), None)  # noqa: E731
-        last = {}
+        scores = {}
         for (suite, _), ev in r["evals"].items():
-            ag = next(x for x in ev["agents"] if x["name"] == "last")
-            last[suite] = round(ag["driving_score"], 3)
-            if suite == "clean":
-                last["clean_route_types_majority"] = sum(1 for sc in ag["scenarios"] if 2 * sum(1 for x in sc["runs"] if x["route_completion"] >= 1.0) > len(sc["runs"]))
-        out["per_run"].append({"run": r["run"], "first_5_of_7": first(5), "first_7_of_7": first(7), "session_secs": r["session_secs"], "cpu": r["cpu"], **last})
-    for key in ["first_5_of_7", "first_7_of_7", "clean", "hazards", "clean_route_types_majority", "session_secs"]:
+            for ag in ev["agents"]:
+                if ag["name"] not in CHECKPOINTS:
+                    continue
+                key = f"{suite}_{ag['name']}"
+                scores[key] = round(ag["driving_score"], 3)
+                if suite == "clean":
+                    scores[f"route_types_majority_{ag['name']}"] = sum(
+                        1 for sc in ag["scenarios"] if 2 * sum(1 for x in sc["runs"] if x["route_completion"] >= 1.0) > len(sc["runs"]))
+        out["per_run"].append({"run": r["run"], "first_5_of_7": first(5), "first_7_of_7": first(7), "session_secs": r["session_secs"], "cpu": r["cpu"], **scores})
+    keys = ["first_5_of_7", "first_7_of_7", "session_secs"] + [f"{k}_{ck}" for ck in CHECKPOINTS for k in ["clean", "hazards", "route_types_majority"]]
+    for key in keys:
         vals = [x[key] for x in out["per_run"] if x.get(key) is not None]
         out[key] = {"min": min(vals), "max": max(vals), "n": len(vals), "missing": len(out["per_run"]) - len(vals)} if vals else None
     print(json.dumps(out, indent=1))
@@ -423,7 +428,7 @@ def main():
     m = sub.add_parser("readme")
     m.add_argument("--results", default="experiments/hazards2")
     m.add_argument("--agent", default="h2-hybrid-vector")
-    m.add_argument("--extra", action="append", help="a directory with a run's eval.jsonl and its eval-SUITE-default_town.json (README's own check)")
+    m.add_argument("--extra", action="append", help="a directory with a run's eval.jsonl and its eval-SUITE-default_town.json.gz (README's own check)")
     a = p.parse_args()
     {"keep-run": keep_run, "report": report, "readme": readme}[a.command](a)
 

@@ -123,3 +123,42 @@ evaluate_towns() {
         "$1" eval --checkpoint "$2" --name "$3" --town "$town" --runs "$5" --seed 0 --json-out "$6/eval-$town.json" >/dev/null
     done
 }
+
+# episode_figure ACTOR RESULTS RUNS_DIR RUNS FIGURE AGENT_ROW...: the episode figure of a hazard
+# experiment: each agent of the AGENT_ROWs (NAME|...) that has a finished run in RESULTS, with its
+# lowest finished seed whose run directory is in RUNS_DIR (last checkpoint), driven around the same
+# hazards (the suite's seeds on default_town, RUNS runs per kind) beside the baselines; the
+# stalled-car runs kept in RESULTS/episode/stalled_car.jsonl and drawn into FIGURE. A kept figure
+# is redrawn only when every such agent has its run directory here: a machine that trained a few
+# runs must not replace it with a figure of fewer agents.
+episode_figure() {
+    local actor="$1" results="$2" runs_dir="$3" runs="$4" figure="$5" v name d seed found
+    shift 5
+    local -a fig_args=() missing=()
+    for v in "$@"; do
+        name="${v%%|*}"
+        compgen -G "$results/$name/seed*/run.json" >/dev/null || continue
+        found=0
+        for d in $(ls -d "$runs_dir/$name"/seed* 2>/dev/null | sort -V); do
+            seed="${d##*/seed}"
+            if [[ -f "$results/$name/seed$seed/run.json" && -f "$d/checkpoint/online.safetensors" ]]; then
+                fig_args+=(--checkpoint "$d" --name "$name, seed $seed")
+                found=1
+                break
+            fi
+        done
+        [[ "$found" == 1 ]] || missing+=("$name")
+    done
+    local kept="$results/episode/stalled_car.jsonl"
+    if [[ ${#missing[@]} -gt 0 && -f "$kept" ]]; then
+        echo "== the episode figure: kept as it is ($kept); no finished checkpoint here for ${missing[*]}" >&2
+        return 0
+    fi
+    [[ ${#fig_args[@]} -gt 0 ]] || return 0
+    echo "== the episode figure's runs: $(( ${#fig_args[@]} / 4 )) checkpoints and the baselines, hazard suite on default_town" >&2
+    "$actor" eval --suite hazards --town default_town --runs "$runs" --seed 0 "${fig_args[@]}" \
+        --trajectories-out "$runs_dir/trajectories.jsonl" >/dev/null
+    mkdir -p "$results/episode"
+    python3 scripts/episode_figure.py --trajectories "$runs_dir/trajectories.jsonl" --scenario stalled_car \
+        --keep "$kept" --out "$figure"
+}

@@ -320,37 +320,8 @@ if [[ "$report_only" == 0 ]]; then
             started_from=""
         done
     fi
-    # 5. The episode figure's runs: every agent around the same hazards (the suite's seeds on
-    # default_town), each agent's lowest finished seed (of any --seeds) whose run directory is
-    # here, last checkpoint. A kept figure is redrawn only when every agent has one here: a
-    # machine that trained a few runs must not replace it with a figure of fewer agents.
-    fig_args=()
-    missing=()
-    for v in "${agents[@]}" "${long[@]}"; do
-        name="${v%%|*}"
-        found=0
-        for d in $(ls -d "$runs_dir/$name"/seed* 2>/dev/null | sort -V); do
-            seed="${d##*/seed}"
-            if [[ -f "$results/$name/seed$seed/run.json" && -f "$d/checkpoint/online.safetensors" ]]; then
-                fig_args+=(--checkpoint "$d" --name "$name, seed $seed")
-                found=1
-                break
-            fi
-        done
-        [[ "$found" == 1 ]] || missing+=("$name")
-    done
-    kept_episode="$results/episode/stalled_car.jsonl"
-    if [[ ${#missing[@]} -gt 0 && -f "$kept_episode" ]]; then
-        echo "== the episode figure: kept as it is ($kept_episode); no finished checkpoint here for ${missing[*]}" >&2
-        fig_args=()
-    fi
-    if [[ ${#fig_args[@]} -gt 0 ]]; then
-        echo "== the episode figure's runs: $(( ${#fig_args[@]} / 4 )) checkpoints and the baselines, hazard suite on default_town" >&2
-        "$actor" eval --suite hazards --town default_town --runs "$runs" --seed 0 "${fig_args[@]}" \
-            --trajectories-out "$runs_dir/trajectories.jsonl" >/dev/null
-        python3 scripts/episode_figure.py --trajectories "$runs_dir/trajectories.jsonl" --scenario stalled_car \
-            --keep "$results/episode/stalled_car.jsonl" --out docs/figures/hazards-episode.svg
-    fi
+    # 5. The episode figure: each agent's lowest finished seed (of any --seeds), last checkpoint.
+    episode_figure "$actor" "$results" "$runs_dir" "$runs" docs/figures/hazards-episode.svg "${agents[@]}" "${long[@]}"
 fi
 if [[ "$report_only" == 1 && -f "$results/episode/stalled_car.jsonl" ]]; then
     python3 scripts/episode_figure.py --trajectories "$results/episode/stalled_car.jsonl" --scenario stalled_car \

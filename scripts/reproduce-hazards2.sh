@@ -185,38 +185,8 @@ if [[ "$report_only" == 0 ]]; then
             train_and_evaluate "$long_name" "$long_preset" "$long_extra" "$seed"
         done
     fi
-    # The episode figure's runs: every agent's lowest finished seed whose run directory is here,
-    # last checkpoint, around the same stalled cars (default_town). Kept as it is unless every
-    # agent that has finished runs has its run directory here.
-    fig_args=()
-    missing=()
-    for v in "${agents[@]}" "${long[@]}"; do
-        name="${v%%|*}"
-        [[ -n "$(ls -d "$results/$name"/seed*/run.json 2>/dev/null)" ]] || continue
-        found=0
-        for d in $(ls -d "$runs_dir/$name"/seed* 2>/dev/null | sort -V); do
-            seed="${d##*/seed}"
-            if [[ -f "$results/$name/seed$seed/run.json" && -f "$d/checkpoint/online.safetensors" ]]; then
-                fig_args+=(--checkpoint "$d" --name "$name, seed $seed")
-                found=1
-                break
-            fi
-        done
-        [[ "$found" == 1 ]] || missing+=("$name")
-    done
-    kept_episode="$results/episode/stalled_car.jsonl"
-    if [[ ${#missing[@]} -gt 0 && -f "$kept_episode" ]]; then
-        echo "== the episode figure: kept as it is ($kept_episode); no checkpoint here for ${missing[*]}" >&2
-        fig_args=()
-    fi
-    if [[ ${#fig_args[@]} -gt 0 ]]; then
-        echo "== the episode figure's runs: $(( ${#fig_args[@]} / 4 )) checkpoints and the baselines, hazard suite on default_town" >&2
-        "$actor" eval --suite hazards --town default_town --runs "$runs" --seed 0 "${fig_args[@]}" \
-            --trajectories-out "$runs_dir/trajectories.jsonl" >/dev/null
-        mkdir -p "$results/episode"
-        python3 scripts/episode_figure.py --trajectories "$runs_dir/trajectories.jsonl" --scenario stalled_car \
-            --keep "$kept_episode" --out docs/figures/hazards2-episode.svg
-    fi
+    # The episode figure: each agent's lowest finished seed, last checkpoint.
+    episode_figure "$actor" "$results" "$runs_dir" "$runs" docs/figures/hazards2-episode.svg "${agents[@]}" "${long[@]}"
 fi
 if [[ "$report_only" == 1 && -f "$results/episode/stalled_car.jsonl" ]]; then
     python3 scripts/episode_figure.py --trajectories "$results/episode/stalled_car.jsonl" --scenario stalled_car \
