@@ -334,7 +334,7 @@ def tables(data):
         for seed, r in by_seed.items():
             best = r.get("best") or {}
             lines.append(f"| {name} | {seed} | {r['env_steps'] or 0:,} | {r['learner_step'] or 0:,} | {best.get('env_steps') or 0:,} | "
-                         f"{r['train_minutes']} | {r['cpu']}, {r['load_before']} → {r['load_after']} | {r['commit']} |")
+                         f"{r['train_minutes']} | {r['cpu']}, {r['load_before'] or '–'} → {r['load_after'] or '–'} | {r['commit'] or 'imported'} |")
     s["hazards2-runs"] = "\n".join(lines)
     return s
 

@@ -7,7 +7,7 @@
 #      to its budget: --env-steps for the vector agents, --camera-env-steps for the camera agent
 #      (`h2-hybrid-hazards`), periodic evaluations every --eval-every minutes (the learning curves
 #      per hazard kind and the choice of best/)
-#   1b. the longer-budget row (group `hazards2-long`): each of seeds 1..--long-seeds of
+#   1b. the longer-budget row (group `hazards2-long`): each of seeds 1..--long-seeds (default 5) of
 #      h2-hybrid-vector trained on from its --env-steps checkpoint to --long-env-steps (a copy of
 #      its run directory, resumed: the curve is that run's own)
 #   2. the last checkpoint and best/ of every run on the hazard suite and the clean suite on
@@ -35,7 +35,7 @@ seeds=5
 env_steps=1000000
 camera_env_steps=400000
 long_env_steps=3000000
-long_seeds=3
+long_seeds=5
 only=""
 runs=10
 eval_every=0.5
@@ -51,7 +51,7 @@ scripts/reproduce-hazards2.sh — the second hazard experiment of docs/RESULTS.m
   --env-steps N         the vector agents' budget, environment steps (default 1000000)
   --camera-env-steps N  the camera agent's budget (default 400000)
   --long-env-steps N    the longer-budget row's budget (default 3000000); 0 skips the row
-  --long-seeds N        seeds of the longer-budget row, 1..N (default 3)
+  --long-seeds N        seeds of the longer-budget row, 1..N (default 5)
   --agents A,B          train only these (names below); the report covers every finished run
   --runs N              evaluation runs per hazard kind or route, suite and town (default 10)
   --eval-every M        minutes between periodic evaluations during training (default 0.5)
