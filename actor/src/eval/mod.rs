@@ -75,8 +75,8 @@ pub struct EvalArgs {
     /// Score the field's way (driving score = route completion × infraction penalty) on a suite:
     /// `hazards` (one scenario per hazard kind, on random routes of the town), `hazards-robust`
     /// (the same with every hazard parameter drawn beyond the ranges training draws from:
-    /// docs/EVALUATION.md) or `clean` (the seven routes), beside the `model-based` and `model-based-avoid` baselines. `--route` does
-    /// not apply.
+    /// docs/EVALUATION.md) or `clean` (the seven routes, those the town has), beside the
+    /// `model-based` and `model-based-avoid` baselines. `--route` does not apply.
     #[arg(long, value_name = "SUITE")]
     pub suite: Option<String>,
     /// With --suite: write every run's trajectory to this file, one JSON object per line (agent,
