@@ -42,6 +42,28 @@ def eval_files(d):
     return {(s, t): d / f"eval-{s}-{t}.json" for s in SUITES for t in TOWNS}
 
 
+
+def run_record(a, run_dir, episodes):
+    """What a kept run's run.json says of every run (`a`: keep-run's arguments): the agent, seed
+    and budget, the last and best/ checkpoints' counters, and how it ran."""
+    counters = {}
+    for which, sub in [("last", "checkpoint"), ("best", "best")]:
+        p = run_dir / sub / "state.json"
+        if p.exists():
+            c = json.loads(p.read_text()).get("counters", {})
+            counters[which] = {"env_steps": c.get("env_steps"), "learner_step": c.get("learner_step")}
+    return {
+        "agent": a.name,
+        "preset": a.preset,
+        "seed": a.seed,
+        "env_steps_budget": a.env_steps_budget,
+        "env_steps": counters.get("last", {}).get("env_steps"),
+        "learner_step": counters.get("last", {}).get("learner_step"),
+        "best": counters.get("best"),
+        "episodes": len(episodes),
+        **main_results.how_it_ran(a, episodes, main_results.read_jsonl(run_dir / "train.jsonl")),
+    }
+
 def keep_run(a):
     run_dir, out = Path(a.run_dir), Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -60,25 +82,7 @@ def keep_run(a):
             kept.write_text(json.dumps({**ev, "agents": base}) + "\n")
         ev["agents"] = [x for x in ev["agents"] if x["name"] not in BASELINES]
         path.write_text(json.dumps(ev) + "\n")
-    train = main_results.read_jsonl(run_dir / "train.jsonl")
-    counters = {}
-    for which, sub in [("last", "checkpoint"), ("best", "best")]:
-        p = run_dir / sub / "state.json"
-        if p.exists():
-            c = json.loads(p.read_text()).get("counters", {})
-            counters[which] = {"env_steps": c.get("env_steps"), "learner_step": c.get("learner_step")}
-    run = {
-        "agent": a.name,
-        "preset": a.preset,
-        "seed": a.seed,
-        "hazard_rate": a.rate,
-        "env_steps_budget": a.env_steps_budget,
-        "env_steps": counters.get("last", {}).get("env_steps"),
-        "learner_step": counters.get("last", {}).get("learner_step"),
-        "best": counters.get("best"),
-        "episodes": len(episodes),
-        **main_results.how_it_ran(a, episodes, train),
-    }
+    run = {**run_record(a, run_dir, episodes), "hazard_rate": a.rate}
     if a.started_from:
         run["started_from"] = a.started_from
     (out / "run.json").write_text(json.dumps(run, indent=1) + "\n")

@@ -69,24 +69,7 @@ def keep_run(a):
         ev["agents"] = [x for x in ev["agents"] if x["name"] not in BASELINES]
         write_eval(eval_path(out, suite, town), ev)
         plain.unlink()
-    train = main_results.read_jsonl(run_dir / "train.jsonl")
-    counters = {}
-    for which, sub in [("last", "checkpoint"), ("best", "best")]:
-        p = run_dir / sub / "state.json"
-        if p.exists():
-            c = json.loads(p.read_text()).get("counters", {})
-            counters[which] = {"env_steps": c.get("env_steps"), "learner_step": c.get("learner_step")}
-    run = {
-        "agent": a.name,
-        "preset": a.preset,
-        "seed": a.seed,
-        "env_steps_budget": a.env_steps_budget,
-        "env_steps": counters.get("last", {}).get("env_steps"),
-        "learner_step": counters.get("last", {}).get("learner_step"),
-        "best": counters.get("best"),
-        "episodes": len(episodes),
-        **main_results.how_it_ran(a, episodes, train),
-    }
+    run = hz.run_record(a, run_dir, episodes)
     (out / "run.json").write_text(json.dumps(run, indent=1) + "\n")
     print(f"kept {run_dir} in {out}", file=sys.stderr)
 
