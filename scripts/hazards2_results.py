@@ -191,6 +191,9 @@ def report(a):
         for j, ((suite, town), reps) in enumerate(sorted(reports.items())):
             ss = seed_samples(reps, suite)
             summary, draw = hz.summarise(ss, 101 * i + j)
+            if seeds:
+                # The seeds that have this evaluation: a run without checkpoints has fewer towns.
+                summary["seeds"] = len(reps)
             entry["suites"].setdefault(suite, {})[town] = summary
             draws[(label, suite, town)] = (summary, draw)
             if suite == "hazards":
@@ -235,6 +238,15 @@ def report(a):
 TOWN_NAMES = {"default_town": "default_town", "held_out_town": "held_out_town", "town01": "Town01"}
 
 
+def seed_count(hazards, clean):
+    """The seeds column: the seeds that have the row's hazard and clean evaluations (– for a
+    baseline), both when they differ."""
+    h, c = (x.get("seeds") if x else None for x in (hazards, clean))
+    if h and c and h != c:
+        return f"{h} (clean {c})"
+    return str(h or c or "–")
+
+
 def tables(data):
     ci = hz.ci
     s = {}
@@ -249,7 +261,7 @@ def tables(data):
                 continue
             cells = [ci(h["driving_score"]), ci(h["route_completion"], True), ci(h["success_rate"], True), ci(h["infractions_per_km"], digits=1)] if h else ["–"] * 4
             cells += [ci(c["driving_score"]), ci(c["route_completion"], True), ci(c["success_rate"], True)] if c else ["–"] * 3
-            lines.append(f"| {label} | {len(e['seeds']) if e['seeds'] else '–'} | " + " | ".join(cells) + " |")
+            lines.append(f"| {label} | {seed_count(h, c)} | " + " | ".join(cells) + " |")
         lines.append("")
     pl = data["placed"].get("hazards", {}).get("town01")
     if pl:

@@ -5,8 +5,9 @@
 #
 #   1. the agents of group `hazards2` of experiments/agents.txt × --seeds (1..N), seed by seed, each
 #      to its budget: --env-steps for the vector agents, --camera-env-steps for the camera agent
-#      (`h2-hybrid-hazards`), periodic evaluations every --eval-every minutes (the learning curves
-#      per hazard kind and the choice of best/)
+#      (`h2-hybrid-hazards`), periodic evaluations every --eval-every minutes (the camera agent's
+#      every --camera-eval-every: at 30 s they would take most of its CPU) — the learning curves per
+#      hazard kind and the choice of best/
 #   1b. the longer-budget row (group `hazards2-long`): each of seeds 1..--long-seeds (default 5) of
 #      h2-hybrid-vector trained on from its --env-steps checkpoint to --long-env-steps (a copy of
 #      its run directory, resumed: the curve is that run's own)
@@ -39,6 +40,7 @@ long_seeds=5
 only=""
 runs=10
 eval_every=0.5
+camera_eval_every=3
 report_only=0
 runs_dir="runs/hazards2"
 build=1
@@ -55,6 +57,7 @@ scripts/reproduce-hazards2.sh — the second hazard experiment of docs/RESULTS.m
   --agents A,B          train only these (names below); the report covers every finished run
   --runs N              evaluation runs per hazard kind or route, suite and town (default 10)
   --eval-every M        minutes between periodic evaluations during training (default 0.5)
+  --camera-eval-every M the camera agent's periodic evaluations (default 3)
   --report-only         train nothing: rebuild the tables from experiments/hazards2
   --runs-dir DIR        where the training run directories go (default runs/hazards2)
   --no-build            use the binaries in target/release as they are
@@ -81,6 +84,7 @@ while [[ $# -gt 0 ]]; do
         --agents) only="${2:?--agents needs names}"; shift 2 ;;
         --runs) runs="${2:?--runs needs a number}"; shift 2 ;;
         --eval-every) eval_every="${2:?--eval-every needs minutes}"; shift 2 ;;
+        --camera-eval-every) camera_eval_every="${2:?--camera-eval-every needs minutes}"; shift 2 ;;
         --report-only) report_only=1; shift ;;
         --runs-dir) runs_dir="${2:?--runs-dir needs a directory}"; shift 2 ;;
         --no-build) build=0; shift ;;
@@ -88,7 +92,7 @@ while [[ $# -gt 0 ]]; do
         *) echo "reproduce-hazards2.sh: unknown argument \`$1\` (see --help)" >&2; exit 2 ;;
     esac
 done
-require_positive reproduce-hazards2.sh "seeds:$seeds" "env-steps:$env_steps" "camera-env-steps:$camera_env_steps" "runs:$runs" "eval-every:$eval_every"
+require_positive reproduce-hazards2.sh "seeds:$seeds" "env-steps:$env_steps" "camera-env-steps:$camera_env_steps" "runs:$runs" "eval-every:$eval_every" "camera-eval-every:$camera_eval_every"
 for pair in "seeds:$seeds" "env-steps:$env_steps" "camera-env-steps:$camera_env_steps" "long-env-steps:$long_env_steps" "long-seeds:$long_seeds" "runs:$runs"; do
     if ! [[ "${pair#*:}" =~ ^[0-9]+$ ]]; then
         echo "reproduce-hazards2.sh: --${pair%%:*} ${pair#*:} must be a whole number" >&2
@@ -138,19 +142,25 @@ budget_of() {
     else echo "$camera_env_steps"; fi
 }
 
+# eval_every_of PRESET: minutes between periodic evaluations: the vector agents' or the camera's.
+eval_every_of() {
+    if [[ "$1" == hybrid-vector || "$1" == e2e-vector ]]; then echo "$eval_every"; else echo "$camera_eval_every"; fi
+}
+
 # train_and_evaluate NAME PRESET EXTRA SEED: one run, skipped when its run.json exists.
 train_and_evaluate() {
     local name="$1" preset="$2" extra="$3" seed="$4"
-    local dir="$runs_dir/$name/seed$seed" out="$results/$name/seed$seed" budget
+    local dir="$runs_dir/$name/seed$seed" out="$results/$name/seed$seed" budget every
     budget=$(budget_of "$name" "$preset")
+    every=$(eval_every_of "$preset")
     run_done "$name" "$seed" "$out" && return
     mkdir -p "$dir" "$out"
     local cfg="$out/config.toml"
     [[ -f "$cfg" ]] || preset_config "$name: the \`$preset\` preset$([[ -n "$extra" ]] && echo " with the lines below")." "$preset" "$extra" >"$cfg"
     session_begin
     echo "== $name seed $seed: training to $budget env steps (run directory $dir)" >&2
-    echo "+ $actor train --config $cfg --run-dir $dir --seed $seed --max-env-steps $budget --eval-every $eval_every" >&2
-    "$actor" train --config "$cfg" --run-dir "$dir" --seed "$seed" --max-env-steps "$budget" --eval-every "$eval_every"
+    echo "+ $actor train --config $cfg --run-dir $dir --seed $seed --max-env-steps $budget --eval-every $every" >&2
+    "$actor" train --config "$cfg" --run-dir "$dir" --seed "$seed" --max-env-steps "$budget" --eval-every "$every"
     session_end
     evaluate "$dir" "$out"
     local -a kept

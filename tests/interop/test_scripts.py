@@ -8,15 +8,17 @@ import pytest
 from conftest import ROOT
 
 
-@pytest.mark.parametrize("args, script", [
-    (["scripts/reproduce.sh", "--agents", "hybrid-tuned,no-such-agent", "--no-build"], "reproduce.sh"),
-    (["scripts/reproduce.sh", "--experiment", "hazards", "--agents", "no-such-agent", "--no-build"], "reproduce-hazards.sh"),
+@pytest.mark.parametrize("args, script, valid", [
+    (["scripts/reproduce.sh", "--agents", "hybrid-tuned,no-such-agent", "--no-build"], "reproduce.sh", "hybrid-tuned"),
+    (["scripts/reproduce.sh", "--experiment", "hazards", "--agents", "no-such-agent", "--no-build"], "reproduce-hazards.sh", "hybrid-tuned"),
+    (["scripts/reproduce.sh", "--experiment", "hazards2", "--agents", "no-such-agent", "--no-build"], "reproduce-hazards2.sh",
+     "h2-hybrid-hazards"),
 ])
-def test_an_unknown_agent_is_refused_by_name_with_the_valid_ones(args, script):
+def test_an_unknown_agent_is_refused_by_name_with_the_valid_ones(args, script, valid):
     p = subprocess.run(["bash", *args], cwd=ROOT, capture_output=True, text=True, timeout=60)
     assert p.returncode == 2, p.stderr
     assert f"{script}: --agents: unknown agent `no-such-agent`; expected some of:" in p.stderr
-    assert "hybrid-tuned" in p.stderr.split("expected some of:")[1], "the valid names are listed"
+    assert valid in p.stderr.split("expected some of:")[1], "the valid names are listed"
     assert "hybrid-tuned," not in p.stderr, "the names are checked one by one"
 
 
@@ -30,4 +32,13 @@ def test_precision_parity_refuses_a_bad_flag_before_training(args, message):
                        capture_output=True, text=True, timeout=60)
     assert p.returncode == 2, p.stderr
     assert message in p.stderr
+    assert "training to" not in p.stderr, "nothing was trained"
+
+
+@pytest.mark.parametrize("flag", ["--eval-every", "--camera-eval-every"])
+def test_hazards2_refuses_a_periodic_evaluation_interval_that_is_not_positive(flag):
+    p = subprocess.run(["bash", "scripts/reproduce-hazards2.sh", flag, "0", "--no-build"], cwd=ROOT,
+                       capture_output=True, text=True, timeout=60)
+    assert p.returncode == 2, p.stderr
+    assert f"reproduce-hazards2.sh: {flag} 0 must be a positive number" in p.stderr
     assert "training to" not in p.stderr, "nothing was trained"
