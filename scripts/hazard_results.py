@@ -42,7 +42,6 @@ def eval_files(d):
     return {(s, t): d / f"eval-{s}-{t}.json" for s in SUITES for t in TOWNS}
 
 
-
 def run_record(a, run_dir, episodes):
     """What a kept run's run.json says of every run (`a`: keep-run's arguments): the agent, seed
     and budget, the last and best/ checkpoints' counters, and how it ran."""
@@ -63,6 +62,7 @@ def run_record(a, run_dir, episodes):
         "episodes": len(episodes),
         **main_results.how_it_ran(a, episodes, main_results.read_jsonl(run_dir / "train.jsonl")),
     }
+
 
 def keep_run(a):
     run_dir, out = Path(a.run_dir), Path(a.out)

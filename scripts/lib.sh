@@ -162,3 +162,11 @@ episode_figure() {
     python3 scripts/episode_figure.py --trajectories "$runs_dir/trajectories.jsonl" --scenario stalled_car \
         --keep "$kept" --out "$figure"
 }
+
+# kept_episode_figure RESULTS FIGURE: FIGURE drawn again from the stalled-car runs that
+# episode_figure kept in RESULTS/episode/stalled_car.jsonl (nothing when none are kept).
+kept_episode_figure() {
+    local kept="$1/episode/stalled_car.jsonl"
+    [[ -f "$kept" ]] || return 0
+    python3 scripts/episode_figure.py --trajectories "$kept" --scenario stalled_car --out "$2"
+}

@@ -323,9 +323,8 @@ if [[ "$report_only" == 0 ]]; then
     # 5. The episode figure: each agent's lowest finished seed (of any --seeds), last checkpoint.
     episode_figure "$actor" "$results" "$runs_dir" "$runs" docs/figures/hazards-episode.svg "${agents[@]}" "${long[@]}"
 fi
-if [[ "$report_only" == 1 && -f "$results/episode/stalled_car.jsonl" ]]; then
-    python3 scripts/episode_figure.py --trajectories "$results/episode/stalled_car.jsonl" --scenario stalled_car \
-        --out docs/figures/hazards-episode.svg
+if [[ "$report_only" == 1 ]]; then
+    kept_episode_figure "$results" docs/figures/hazards-episode.svg
 fi
 
 echo "== report: docs/RESULTS.md (hazard sections), experiments/results.json (\"hazards\"), docs/figures/hazards-*.svg" >&2

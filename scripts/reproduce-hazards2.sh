@@ -138,13 +138,18 @@ evaluate() {
 # the camera's.
 budget_of() {
     if [[ "$1" == "${long[0]%%|*}" ]]; then echo "$long_env_steps"
-    elif [[ "$2" == hybrid-vector || "$2" == e2e-vector ]]; then echo "$env_steps"
+    elif vector_preset "$2"; then echo "$env_steps"
     else echo "$camera_env_steps"; fi
 }
 
 # eval_every_of PRESET: minutes between periodic evaluations: the vector agents' or the camera's.
 eval_every_of() {
-    if [[ "$1" == hybrid-vector || "$1" == e2e-vector ]]; then echo "$eval_every"; else echo "$camera_eval_every"; fi
+    if vector_preset "$1"; then echo "$eval_every"; else echo "$camera_eval_every"; fi
+}
+
+# vector_preset PRESET: whether the preset sees objects (the vector sensor) rather than a camera.
+vector_preset() {
+    [[ "$1" == hybrid-vector || "$1" == e2e-vector ]]
 }
 
 # train_and_evaluate NAME PRESET EXTRA SEED: one run, skipped when its run.json exists.
@@ -198,9 +203,8 @@ if [[ "$report_only" == 0 ]]; then
     # The episode figure: each agent's lowest finished seed, last checkpoint.
     episode_figure "$actor" "$results" "$runs_dir" "$runs" docs/figures/hazards2-episode.svg "${agents[@]}" "${long[@]}"
 fi
-if [[ "$report_only" == 1 && -f "$results/episode/stalled_car.jsonl" ]]; then
-    python3 scripts/episode_figure.py --trajectories "$results/episode/stalled_car.jsonl" --scenario stalled_car \
-        --out docs/figures/hazards2-episode.svg
+if [[ "$report_only" == 1 ]]; then
+    kept_episode_figure "$results" docs/figures/hazards2-episode.svg
 fi
 
 echo "== report: docs/RESULTS.md (hazards2 sections), experiments/results.json (\"hazards2\"), docs/figures/hazards2-*.svg" >&2
